@@ -1,0 +1,157 @@
+// Read-only views of the world: where particles and parts are, energies, momenta, hinge error, and the moment a
+// weld carried during the last step.
+#include "core/world.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace ladder::core {
+
+Vec2 World::particle_position(int p) const {
+  const PartMotion m = part_motion(particles_.at(p).part);
+  return m.x + m.q * particles_[p].local;
+}
+
+Vec2 World::particle_velocity(int p) const {
+  const PartMotion m = part_motion(particles_.at(p).part);
+  return m.v + m.w * perp(m.q * particles_[p].local);
+}
+
+Vec2 World::part_position(int part) const { return part_motion(part).x; }
+double World::part_angle(int part) const { return part_motion(part).th; }
+Rot World::part_rotation(int part) const { return part_motion(part).q; }
+Vec2 World::part_velocity(int part) const { return part_motion(part).v; }
+double World::part_omega(int part) const { return part_motion(part).w; }
+
+double World::kinetic_energy() const {
+  double e = 0;
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_[b].kinematic) continue;
+    e += 0.5 * (bodies_[b].mass * state_[b].v.squaredNorm() + bodies_[b].inertia * state_[b].w * state_[b].w);
+  }
+  return e;
+}
+
+double World::potential_energy() const {
+  double e = 0;
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (!bodies_[b].kinematic) e -= bodies_[b].mass * options_.gravity.dot(state_[b].x);
+  return e;
+}
+
+Vec2 World::linear_momentum(const std::vector<int>& parts) const {
+  Vec2 p = Vec2::Zero();
+  for (int i : parts) p += parts_.at(i).mass * part_motion(i).v;
+  return p;
+}
+
+double World::angular_momentum(const std::vector<int>& parts, const Vec2& about) const {
+  double l = 0;
+  for (int i : parts) {
+    const PartMotion m = part_motion(i);
+    l += parts_.at(i).inertia * m.w + parts_[i].mass * cross(m.x - about, m.v);
+  }
+  return l;
+}
+
+double World::max_hinge_error() const {
+  double worst = 0;
+  for (const Joint& j : joints_)
+    if (j.alive) worst = std::max(worst, (particle_position(j.pa) - particle_position(j.pb)).norm());
+  return worst;
+}
+
+bool World::finite() const {
+  for (const BodyState& s : state_)
+    if (!s.x.allFinite() || !s.v.allFinite() || !std::isfinite(s.th) || !std::isfinite(s.w) || !std::isfinite(s.q.c) ||
+        !std::isfinite(s.q.s))
+      return false;
+  return std::isfinite(t_);
+}
+
+// Impulse-momentum balance over the last step for S, the parts on pb's side of the weld (reached from pb's part
+// through other welds). S moves rigidly with its body, so about S's centre of mass c:
+//   linear:   m_S (v1 - v0)  = h F_ext + sum J_row + J_weld
+//   angular:  I_S (w1 - w0)  = h tau_ext + sum (p_row - c) x J_row + (P - c) x J_weld + h M_weld
+// with the row impulses the solver applied and P the weld point; the lever arms are taken at the end of the step.
+double World::weld_moment(int pa, int pb) const {
+  const int j = find_joint(pa, pb);
+  if (j < 0 || joints_[j].kind != JointKind::Weld)
+    throw std::invalid_argument("weld_moment: particles " + std::to_string(pa) + " and " + std::to_string(pb) +
+                                " are not welded");
+  if (!(last_h_ > 0) || step_structure_ != structure_ || step_start_.size() != state_.size()) return 0;
+  const int part_a = particles_[pa].part, part_b = particles_[pb].part;
+  const int body = parts_[part_b].body;
+  // S: flood over welds from part_b without crossing joint j.
+  std::vector<int> side{part_b};
+  std::vector<char> in(parts_.size(), 0);
+  in[part_b] = 1;
+  for (size_t i = 0; i < side.size(); ++i) {
+    for (size_t k = 0; k < joints_.size(); ++k) {
+      const Joint& jt = joints_[k];
+      if (static_cast<int>(k) == j || !jt.alive || jt.kind != JointKind::Weld) continue;
+      const int x = particles_[jt.pa].part, y = particles_[jt.pb].part;
+      const int other = x == side[i] ? y : (y == side[i] ? x : -1);
+      if (other >= 0 && !in[other]) {
+        in[other] = 1;
+        side.push_back(other);
+      }
+    }
+  }
+  if (in[part_a]) return 0;  // welded around a loop: no moment can be attributed to this weld
+  const BodyState& s1 = state_[body];
+  const BodyState& s0 = step_start_[body];
+  double m = 0, inertia = 0;
+  Vec2 rel_c = Vec2::Zero();  // S's centre of mass in the body frame
+  for (int i : side) {
+    m += parts_[i].mass;
+    rel_c += parts_[i].mass * parts_[i].rel_x;
+  }
+  if (!(m > 0)) return 0;
+  rel_c /= m;
+  for (int i : side) inertia += parts_[i].inertia + parts_[i].mass * (parts_[i].rel_x - rel_c).squaredNorm();
+  const Vec2 c = s1.x + s1.q * rel_c;
+  const Vec2 v1 = s1.v + s1.w * perp(s1.q * rel_c);
+  const Vec2 v0 = s0.v + s0.w * perp(s0.q * rel_c);
+  const double h = last_h_;
+  // External forces on S over the step (as the kick applies them, at the start of the step). A held body gets no
+  // kick (the hand prescribes its motion), but the forces act on it all the same: the weld and the hand carry them.
+  Vec2 f_ext = Vec2::Zero();
+  double tau_ext = 0;
+  for (int i : side) {
+    const Part& p = parts_[i];
+    const Vec2 d0 = s0.q * p.rel_x;
+    const Vec2 fp = p.mass * (options_.gravity - options_.linear_damping * (s0.v + s0.w * perp(d0)));
+    f_ext += fp;
+    tau_ext += cross(s1.q * (p.rel_x - rel_c), fp) - options_.angular_damping * p.inertia * s0.w;
+  }
+  for (const AppliedForce& af : forces_) {
+    if (!in[af.part]) continue;
+    const Part& p = parts_[af.part];
+    f_ext += af.force;
+    tau_ext += cross(s1.q * (p.rel_x + p.rel_q * af.local - rel_c), af.force);
+  }
+  Vec2 j_rows = Vec2::Zero();
+  double m_rows = 0;
+  for (size_t k = 0; k < rows_.size(); ++k) {
+    const Row& r = rows_[k];
+    const double friction = options_.hinge_friction * (state_[r.b].w - state_[r.a].w) * h;
+    if (in[r.part_a]) {
+      const Vec2 point = state_[r.a].x + state_[r.a].q * r.ra;
+      j_rows += row_impulse_[k];
+      m_rows += cross(point - c, row_impulse_[k]) + friction;
+    }
+    if (in[r.part_b]) {
+      const Vec2 point = state_[r.b].x + state_[r.b].q * r.rb;
+      j_rows -= row_impulse_[k];
+      m_rows -= cross(point - c, row_impulse_[k]) + friction;
+    }
+  }
+  const Vec2 weld_point = particle_position(pb);
+  const Vec2 j_weld = m * (v1 - v0) - h * f_ext - j_rows;
+  const double angular = inertia * (s1.w - s0.w) - h * tau_ext - m_rows - cross(weld_point - c, j_weld);
+  return angular / h;
+}
+
+}  // namespace ladder::core

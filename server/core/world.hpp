@@ -1,0 +1,276 @@
+// The physics engine: particles grouped into rigid bodies, joined by hinges made by combining particles.
+//
+// Model (after Glencross & Murta, "A Virtual Jacob's Ladder", section 2):
+//  - a particle has a mass and a fixed offset in its part;
+//  - a part is a rigid group of particles created together (a ladder block is one part of five particles);
+//  - combine(p, q) of particles of two bodies makes a hinge: the two particles are held coincident;
+//    combine of two particles that already form a hinge welds their bodies into one rigid body (a lock);
+//  - separate(p, q) undoes either: a weld becomes a hinge again, a hinge is broken.
+// A body is a connected set of parts under welds. Bodies, not particles, carry the dynamic state: in 2-D a rigid
+// body's configuration (x, y, theta) has a constant mass matrix diag(m, m, I), so the constrained equations of
+// motion are those of a particle system with holonomic constraints and every classic constrained integrator
+// (SHAKE, RATTLE, projected Runge-Kutta) applies unchanged.
+//
+// The hinge graph over dynamic bodies must be a set of chains (each dynamic body in at most two hinges, no loops);
+// kinematic bodies (held blocks, the world) may carry any number. A chain's hinge system is block-tridiagonal and
+// solved in O(n) (block_tridiag.hpp). combine() refuses a hinge that would break this shape.
+//
+// The core does no I/O: errors are thrown as std::invalid_argument / std::logic_error with a message; the
+// callers (scene loader, daemon) turn them into reports.
+#pragma once
+
+#include "core/block_tridiag.hpp"
+#include "core/geometry.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace ladder::core {
+
+enum class Integrator { Euler, SymplecticEuler, Rattle, RK4 };
+enum class SolverKind { Newton, NewtonLineSearch };
+
+const char* to_string(Integrator);
+const char* to_string(SolverKind);
+// Parse a name as used in scene files; throws std::invalid_argument listing the valid names.
+Integrator integrator_from_string(const std::string&);
+SolverKind solver_from_string(const std::string&);
+
+struct Options {
+  Integrator integrator = Integrator::SymplecticEuler;
+  SolverKind solver = SolverKind::Newton;
+  double tolerance = 1e-12;   // hinge position error the constraint solve drives below [m]
+  int max_iterations = 20;    // per nonlinear solve
+  Vec2 gravity{0.0, -9.81};   // [m/s^2]
+  double linear_damping = 0;  // force -c m v on each part [1/s]
+  double angular_damping = 0; // torque -c I w on each part [1/s]
+  double hinge_friction = 0;  // viscous torque -c (w_b - w_a) at each hinge [N m s]
+};
+
+// Prescribed motion of a kinematic part (a held block): pose, velocity and acceleration at time t.
+struct Kinematics {
+  Vec2 x{0, 0}, v{0, 0}, a{0, 0};
+  double theta = 0, omega = 0, alpha = 0;
+};
+using Drive = std::function<Kinematics(double t)>;
+
+struct ParticleDef {
+  double mass = 0;
+  Vec2 local{0, 0};  // offset from the part's reference point, in the part's frame
+};
+
+struct PartDef {
+  std::vector<ParticleDef> particles;
+  Vec2 position{0, 0};  // where the reference point is, world frame
+  double angle = 0;     // [rad], counter-clockwise
+  Vec2 velocity{0, 0};  // of the centre of mass
+  double omega = 0;     // [rad/s]
+  bool kinematic = false;  // held: moves only as its drive says (static when it has none)
+};
+
+enum class JointKind { Hinge, Weld };
+
+// Result of a restructuring operation: what it became and the kinetic energy the velocity fix removed.
+struct Restructure {
+  JointKind kind = JointKind::Hinge;
+  bool removed = false;        // separate() of a hinge: the joint is gone
+  double energy_removed = 0;   // [J], >= 0 up to rounding
+};
+
+// Hot per-body state: 64 bytes, one cache line.
+struct BodyState {
+  Vec2 x{0, 0};     // centre of mass [m]
+  Vec2 v{0, 0};     // [m/s]
+  Rot q;            // rotation, kept equal to (cos th, sin th)
+  double th = 0;    // unwrapped angle [rad]
+  double w = 0;     // [rad/s]
+};
+
+struct Snapshot {
+  std::vector<BodyState> bodies;
+  double t = 0;
+  std::uint64_t structure = 0;
+};
+
+// Per-step solver figures, for statistics and warnings.
+struct StepStats {
+  int iterations = 0;          // nonlinear iterations in the last step (all solves)
+  double residual = 0;         // largest hinge position error after the last solve [m]
+  int regularised_pivots = 0;  // singular pivot blocks met (degenerate configuration)
+  bool converged = true;       // the position solve reached the tolerance
+};
+
+class World {
+ public:
+  explicit World(const Options& options = {});
+
+  const Options& options() const { return options_; }
+  // Changes options live; the caller validates values (scene loader / daemon).
+  void set_options(const Options& options);
+
+  // --- building ---
+  int add_part(const PartDef& def);  // returns the part index; its particles get consecutive indices
+  int first_particle(int part) const { return parts_[part].first_particle; }
+  void set_drive(int part, Drive drive);  // makes the part kinematic, following the drive
+  void release(int part);                 // the part becomes dynamic (a released hold)
+  bool is_kinematic(int part) const { return parts_[part].kinematic; }
+
+  // Hinges two particles while building a model whose velocities are already consistent: no velocity fix, and
+  // the bodies and hinge rows are rebuilt once, before the next step (so building n hinges costs O(n)).
+  void connect(int pa, int pb);
+  // Rebuilds now if connect() was called; throws if the hinges do not form chains.
+  void finalize() { ensure_built(); }
+
+  // --- restructuring (the paper's combine and separate) ---
+  Restructure combine(int pa, int pb);
+  Restructure separate(int pa, int pb);
+  // The joint between two particles, or -1.
+  int find_joint(int pa, int pb) const;
+  JointKind joint_kind(int joint) const { return joints_[joint].kind; }
+
+  // --- time stepping ---
+  void step(double h);
+  double time() const { return t_; }
+  const StepStats& last_step() const { return stats_; }
+  Snapshot save() const;
+  void restore(const Snapshot& s);
+
+  // Impulse [N s] at a world point of a part, applied now; velocities are then made consistent with the
+  // hinges (the impulse travels through the chain). Returns kinetic energy change [J].
+  double apply_impulse(int part, const Vec2& point, const Vec2& impulse);
+  // Force [N] at a point fixed in a part (given in the part's frame), applied until time `until`.
+  void add_force(int part, const Vec2& local_point, const Vec2& force, double until);
+  // Makes velocities consistent with the hinges by the least-kinetic-energy impulse (used after any change of
+  // velocities or of kinematic drives from outside the step).
+  void project_velocities();
+  void clear_forces() { forces_.clear(); }
+
+  // --- queries ---
+  int part_count() const { return static_cast<int>(parts_.size()); }
+  int particle_count() const { return static_cast<int>(particles_.size()); }
+  int body_count() const { return static_cast<int>(bodies_.size()); }
+  int body_of_part(int part) const { return parts_[part].body; }
+  int part_of_particle(int p) const { return particles_[p].part; }
+  double particle_mass(int p) const { return particles_[p].mass; }
+  Vec2 particle_local(int p) const { return particles_[p].local; }  // in the part frame, from the part COM
+  std::vector<int> body_parts(int body) const;
+  Vec2 particle_position(int p) const;
+  Vec2 particle_velocity(int p) const;
+  Vec2 part_position(int part) const;  // centre of mass
+  double part_angle(int part) const;   // unwrapped [rad]
+  Rot part_rotation(int part) const;
+  Vec2 part_velocity(int part) const;
+  double part_omega(int part) const;
+  const BodyState& body_state(int body) const { return state_[body]; }
+
+  double kinetic_energy() const;    // dynamic bodies only [J]
+  double potential_energy() const;  // gravity, dynamic bodies only [J]
+  Vec2 linear_momentum(const std::vector<int>& parts) const;
+  double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
+  double max_hinge_error() const;   // largest distance between two hinged particles [m]
+  bool finite() const;              // no NaN or infinity anywhere in the state
+  std::uint64_t structure_version() const { return structure_; }
+
+  // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
+  // particle pb's side of it, taken about the weld point. Used to decide when a lock lets go.
+  double weld_moment(int pa, int pb) const;
+
+ private:
+  struct Particle { double mass; int part; Vec2 local; };
+  struct Part {
+    int first_particle = 0, particle_count = 0;
+    double mass = 0, inertia = 0;  // about its own centre of mass
+    int body = -1;
+    Vec2 rel_x{0, 0};              // part pose in its body's frame
+    Rot rel_q;
+    double rel_th = 0;
+    bool kinematic = false;
+    Drive drive;
+  };
+  struct Joint { int pa, pb; JointKind kind; bool alive; };
+  struct Body {
+    double mass = 0, inertia = 0, inv_mass = 0, inv_inertia = 0;
+    bool kinematic = false;
+    int anchor_part = -1;  // the part whose frame is the body frame; a driven part if the body is kinematic
+  };
+  // One hinge in the solver's order: body a, body b, anchors in the body frames. Rows k-1 and k share body
+  // rows[k].a == rows[k-1].b exactly when link_prev is set.
+  struct Row {
+    int a, b;
+    Vec2 ra, rb;
+    int part_a, part_b;
+    int joint;
+    bool link_prev;
+  };
+  struct AppliedForce { int part; Vec2 local; Vec2 force; double until; };
+
+  // topology.cpp
+  void rebuild();
+  static void order_rows(const std::vector<Body>& bodies, std::vector<Row>& rows);
+  void ensure_built() {
+    if (dirty_) rebuild();
+  }
+  struct PartMotion { Vec2 x, v; double th, w; Rot q; };
+  PartMotion part_motion(int part) const;
+  void set_body_from_parts(int body, const std::vector<int>& parts, const std::vector<PartMotion>& motion);
+
+  // constraints.cpp
+  void world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const;
+  void build_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub, BlockTridiag& sys) const;
+  void build_newton_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub,
+                           const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, BlockTridiag& sys) const;
+  double residuals(std::vector<Vec2>& c) const;
+  void apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                        double velocity_scale);
+  bool solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, double velocity_scale);
+  void constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight);
+
+  // step.cpp
+  void drive_kinematic(double t);
+  void accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau) const;
+  void kick(double h, const std::vector<Vec2>& f, const std::vector<double>& tau);
+  void drift(double h);
+  void step_shake(double h, bool rattle);
+  void step_explicit(double h, bool rk4);
+  void mark_state_changed() { ++state_version_; }
+
+  Options options_;
+  std::vector<Particle> particles_;
+  std::vector<Part> parts_;
+  std::vector<Joint> joints_;
+  std::vector<Body> bodies_;
+  std::vector<std::vector<int>> body_parts_;
+  std::vector<Row> rows_;
+  std::vector<BodyState> state_;
+  std::vector<AppliedForce> forces_;
+  double t_ = 0;
+  std::uint64_t structure_ = 0;
+  bool dirty_ = false;
+
+  // Factorisation of G M^-1 G^T at the state with version factor_version_: the velocity projection that ends a
+  // step factors it, and the next step's position solve reuses it as its (chord) Newton matrix.
+  BlockTridiag system_;
+  std::uint64_t state_version_ = 1, factor_version_ = 0;
+  StepStats stats_;
+
+  // The last step's impulses, for weld_moment(): per row [N s] at its end-of-step anchors, per body the state
+  // at the start of the step, and the step length.
+  std::vector<Vec2> row_impulse_;
+  std::vector<BodyState> step_start_;
+  std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
+  double last_h_ = 0;
+
+  // Accelerations of kinematic bodies from their drives (the explicit integrators need them).
+  std::vector<Vec2> kin_acc_;
+  std::vector<double> kin_alpha_;
+
+  bool has_welds_ = false;
+
+  // scratch, kept to avoid allocation in the step
+  std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;
+  std::vector<double> tau_, torque_, acc_ang_;
+};
+
+}  // namespace ladder::core

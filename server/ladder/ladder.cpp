@@ -1,0 +1,472 @@
+#include "ladder/ladder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace ladder::model {
+
+using core::Kinematics;
+using core::PartDef;
+using core::Rot;
+
+const char* to_string(EventKind k) {
+  switch (k) {
+    case EventKind::FlipFlop: return "flip_flop";
+    case EventKind::Lock: return "lock";
+    case EventKind::Unlock: return "unlock";
+    case EventKind::Break: return "break";
+    case EventKind::Join: return "join";
+    case EventKind::SolverWarning: return "solver_warning";
+  }
+  return "?";
+}
+
+const char* to_string(HingeStatus s) {
+  switch (s) {
+    case HingeStatus::Hinged: return "hinged";
+    case HingeStatus::Locked: return "locked";
+    case HingeStatus::Broken: return "broken";
+  }
+  return "?";
+}
+
+// The hand holding the top block: it stays where it took hold and turns the block about its centre, each tip a
+// half-turn with a quintic smoothstep profile (zero angular velocity and acceleration at both ends). A pure
+// function of time, so that a step can be redone from a snapshot (event location) and give the same motion.
+struct Ladder::Hand {
+  struct Tip { double t0, duration, delta; };
+  Vec2 centre{0, 0};
+  double base_angle = 0;
+  std::vector<Tip> tips;
+
+  Kinematics at(double t) const {
+    Kinematics k;
+    k.x = centre;
+    k.theta = base_angle;
+    for (const Tip& tip : tips) {
+      const double u = (t - tip.t0) / tip.duration;
+      if (u <= 0) continue;
+      if (u >= 1) {
+        k.theta += tip.delta;
+        continue;
+      }
+      const double u2 = u * u, u3 = u2 * u;
+      k.theta += tip.delta * u3 * (10 - 15 * u + 6 * u2);
+      k.omega += tip.delta / tip.duration * 30 * u2 * (1 - 2 * u + u2);
+      k.alpha += tip.delta / (tip.duration * tip.duration) * 60 * u * (1 - 3 * u + 2 * u2);
+    }
+    return k;
+  }
+};
+
+namespace {
+
+// Corner positions of block i in its own frame (origin at the centre), Figure 4: corners 0 and 1 on the right
+// edge, 0 at the bottom on even blocks and at the top on odd ones; c ^ 2 is across the width.
+// `half_width` is the hinge particles' distance from the centre line (thickness / 2 at the corners).
+Vec2 corner_local(int i, int c, double length, double half_width) {
+  const double x = (c & 2) ? -half_width : half_width;
+  const bool low = ((c & 1) == 0) == (i % 2 == 0);
+  return {x, low ? -0.5 * length : 0.5 * length};
+}
+
+// sigma = cross(e_c, w_c) of a block, from the numbering alone (it is +-1 whatever the inset): the lengthwise
+// vector points up on even blocks and down on odd ones while the widthwise one points left on both, and moving to
+// c ^ 1 reverses e_c while moving to c ^ 2 reverses w_c.
+double side_sign(int block, int c) {
+  const double chi = (c == 0 || c == 3) ? 1.0 : -1.0;
+  return block % 2 == 0 ? chi : -chi;
+}
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+}  // namespace
+
+Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spec), world_(options) {
+  require(spec.blocks >= 1, "ladder.blocks must be at least 1");
+  require(std::isfinite(spec.length) && spec.length > 0, "ladder.length must be a positive number of metres");
+  require(std::isfinite(spec.thickness) && spec.thickness > 0, "ladder.thickness must be a positive number of metres");
+  require(std::isfinite(spec.mass) && spec.mass > 0, "ladder.mass must be a positive number of kilograms");
+  require(spec.masses.empty() || static_cast<int>(spec.masses.size()) == spec.blocks,
+          "ladder.masses must list one mass per block");
+  for (double m : spec.masses) require(std::isfinite(m) && m > 0, "ladder.masses must all be positive");
+  require(std::isfinite(spec.tip_duration) && spec.tip_duration > 0, "ladder.tip_duration must be positive");
+  require(std::isfinite(spec.kick_omega) && std::isfinite(spec.tilt), "initial conditions must be finite");
+
+  require(std::isfinite(spec.hinge_inset) && spec.hinge_inset >= 0 && spec.hinge_inset <= 0.5,
+          "ladder.hinge_inset must be between 0 and 0.5");
+  const double L = spec.length, W = 2 * (0.5 - spec.hinge_inset) * spec.thickness;  // W: hinge-to-hinge width
+  // Corner particles of mass m_c at (+-W/2, +-L/2) and the rest at the centre reproduce a uniform rectangle's
+  // inertia m (L^2 + T^2) / 12 (T the thickness) when 4 m_c (W^2 + L^2) / 4 = m (L^2 + T^2) / 12.
+  const double corner_share = (L * L + spec.thickness * spec.thickness) / (12 * (W * W + L * L));
+  // Lay the blocks out from the top, each hung by its hinge corner from the block above; then tilt the whole.
+  const int n = spec.blocks;
+  const double lean = std::atan2(W, L);
+  const bool hanging = spec.start == Start::Hanging && spec.top != Top::Free;
+  const auto corner_of = [](int k) { return (k % 2 == 1) ? 0 : 3; };  // hinge k's corner in the initial state
+  std::vector<Vec2> centre(static_cast<size_t>(n)), hinge(static_cast<size_t>(n + 1), Vec2::Zero());
+  std::vector<double> angle(static_cast<size_t>(n), 0.0);
+  angle[0] = hanging && spec.top == Top::Pinned ? -lean : 0.0;
+  centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, L, 0.5 * W));  // top-left corner at the origin
+  for (int k = 1; k < n; ++k) {
+    hinge[k] = centre[k - 1] + Rot::of(angle[k - 1]) * corner_local(k - 1, corner_of(k), L, 0.5 * W);
+    angle[k] = hanging ? (k % 2 == 1 ? lean : -lean) : 0.0;
+    centre[k] = hinge[k] - Rot::of(angle[k]) * corner_local(k, corner_of(k), L, 0.5 * W);
+  }
+  if (n >= 2) hinge[n] = centre[n - 1] + Rot::of(angle[n - 1]) * corner_local(n - 1, corner_of(n), L, 0.5 * W);
+  const Rot tilt = Rot::of(spec.tilt);
+  for (int i = 0; i < n; ++i) {
+    const double m = spec.masses.empty() ? spec.mass : spec.masses[i];
+    PartDef def;
+    for (int c = 0; c < 4; ++c) def.particles.push_back({m * corner_share, corner_local(i, c, L, 0.5 * W)});
+    def.particles.push_back({m * (1 - 4 * corner_share), Vec2::Zero()});
+    def.position = tilt * centre[i];
+    def.angle = spec.tilt + angle[i];
+    // Optional kick: block 1 turning about hinge 1, the blocks below carried along with hinge 2's velocity.
+    if (i == 1) {
+      def.omega = spec.kick_omega;
+      def.velocity = spec.kick_omega * core::perp(tilt * (centre[1] - hinge[1]));
+    } else if (i >= 2) {
+      def.velocity = spec.kick_omega * core::perp(tilt * (hinge[2] - hinge[1]));
+    }
+    def.kinematic = i == 0 && spec.top == Top::Held;
+    world_.add_part(def);
+  }
+  hinges_.resize(static_cast<size_t>(spec.blocks));
+  hinges_[0] = {3, spec.top == Top::Free ? HingeStatus::Broken : HingeStatus::Hinged, 0};
+  if (spec.top == Top::Held) {
+    hand_ = std::make_shared<Hand>();
+    hand_->centre = world_.part_position(0);
+    hand_->base_angle = spec.tilt;
+    world_.set_drive(0, [hand = hand_](double t) { return hand->at(t); });
+  } else if (spec.top == Top::Pinned) {
+    PartDef pin;
+    pin.particles.push_back({0.0, Vec2::Zero()});
+    pin.kinematic = true;
+    world_particle_ = world_.first_particle(world_.add_part(pin));
+    world_.connect(world_particle_, particle(0, 3));
+  }
+  for (int k = 1; k < spec.blocks; ++k) {
+    const int c = corner_of(k);
+    hinges_[k] = {c, HingeStatus::Hinged, 0};
+    world_.connect(particle(k - 1, c), particle(k, c));
+  }
+  world_.finalize();
+  // A flip-flop may happen once |s| is below this; the far corners are then within ~tolerance of each other.
+  s_detect_ = 2 * std::max(options.tolerance, 1e-15) / L;
+}
+
+bool Ladder::held() const { return spec_.top == Top::Held && world_.is_kinematic(0); }
+
+Vec2 Ladder::lengthwise(int i) const {
+  check_block(i);
+  const Vec2 e = world_.particle_local(particle(i, 1)) - world_.particle_local(particle(i, 0));
+  return world_.part_rotation(i) * e.normalized();
+}
+
+double Ladder::hinge_measure(int k) const {
+  const int c = hinges_[k].corner;
+  const auto unit = [&](int block) {
+    return Vec2((world_.particle_local(particle(block, c ^ 1)) - world_.particle_local(particle(block, c))).normalized());
+  };
+  const Vec2 a = world_.part_rotation(k - 1) * unit(k - 1);
+  const Vec2 b = world_.part_rotation(k) * unit(k);
+  return side_sign(k - 1, c) * core::cross(a, b);
+}
+
+bool Ladder::any_violation(std::vector<double>& s) const {
+  s.assign(hinges_.size(), -1.0);
+  bool any = false;
+  for (size_t k = 1; k < hinges_.size(); ++k) {
+    if (hinges_[k].status != HingeStatus::Hinged) continue;
+    s[k] = hinge_measure(static_cast<int>(k));
+    any = any || s[k] > s_detect_;
+  }
+  return any;
+}
+
+void Ladder::emit(EventKind kind, int k, double energy, std::string detail) {
+  events_.push_back({world_.time(), kind, k, energy, std::move(detail)});
+}
+
+std::vector<Event> Ladder::take_events() { return std::exchange(events_, {}); }
+
+// One engine step with a watchdog: a step that produces a non-finite state, or whose hinge solve failed by more
+// than a micrometre, is undone and redone as two half steps (down to 1/64 of the step) with a solver warning; a
+// solve that stops just short of the tolerance is reported once per episode.
+void Ladder::step_guarded(double h, int depth) {
+  const core::Snapshot start = world_.save();
+  world_.step(h);
+  const auto& st = world_.last_step();
+  const bool failed = !world_.finite() || (!st.converged && !(st.residual < 1e-6));
+  if (failed && depth < 6) {
+    world_.restore(start);
+    if (depth == 0) emit(EventKind::SolverWarning, 0, 0, "step failed (non-finite or unsolved hinges): redone in halves");
+    step_guarded(0.5 * h, depth + 1);
+    step_guarded(0.5 * h, depth + 1);
+    return;
+  }
+  if (!world_.finite()) throw std::runtime_error("the simulation diverged even with 1/64 of the time step");
+  if (!st.converged && !warned_)
+    emit(EventKind::SolverWarning, 0, 0, "hinge solve stopped at residual " + std::to_string(st.residual) + " m");
+  warned_ = !st.converged;
+}
+
+void Ladder::advance(double h) {
+  if (!spec_.logic) {
+    step_guarded(h, 0);
+    return;
+  }
+  double remaining = h;
+  std::vector<double> s0, s1;
+  for (int guard = 0; remaining > 0; ++guard) {
+    const core::Snapshot start = world_.save();
+    any_violation(s0);
+    step_guarded(remaining, 0);
+    if (!any_violation(s1)) break;
+    if (guard >= 64) {  // a pathological pile-up of events in one step: keep going, but say so
+      emit(EventKind::SolverWarning, 0, 0, "more than 64 restructuring events in one step");
+      break;
+    }
+    int k = -1;
+    const double tau = locate(start, s0, remaining, k);
+    restructure(k);
+    remaining -= tau * remaining;
+    if (remaining <= 1e-12 * h) break;
+  }
+  check_unlocks();
+}
+
+// Finds the first hinge to cross into a forbidden quadrant during the step of length h from `start` (the world is
+// at the step's end on entry), and leaves the world at the instant it crosses: s in [0, s_detect/2]. The root is
+// found by the Illinois variant of regula falsi on the fraction of the step, each trial a real step from `start`.
+double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge) {
+  const double target = 0.25 * s_detect_, band = 0.25 * s_detect_;
+  std::vector<double> s_hi;
+  any_violation(s_hi);
+  double hi = 1.0;
+  int k = -1;
+  double tau = 0;
+  for (int round = 0; round < 64; ++round) {
+    // The candidate crossing first by linear interpolation of s over [0, hi].
+    k = -1;
+    double best = 2.0;
+    for (size_t j = 1; j < s_hi.size(); ++j) {
+      if (!(s_hi[j] > s_detect_)) continue;
+      const double est = s0[j] >= 0 ? 0.0 : hi * (-s0[j]) / (s_hi[j] - s0[j]);
+      if (est < best) best = est, k = static_cast<int>(j);
+    }
+    double lo = 0, glo = s0[k] - target, top = hi, ghi = s_hi[k] - target;
+    tau = 0;
+    int side = 0;
+    bool found = glo >= -band;  // already at (or just past) the boundary when the step began
+    for (int it = 0; it < 80 && !found; ++it) {
+      tau = (lo * ghi - top * glo) / (ghi - glo);
+      if (!(tau > lo && tau < top)) tau = 0.5 * (lo + top);
+      world_.restore(start);
+      step_guarded(tau * h, 0);
+      const double g = hinge_measure(k) - target;
+      if (std::abs(g) <= band) {
+        found = true;
+        break;
+      }
+      if (g > 0) {
+        top = tau, ghi = g;
+        if (side == 1) glo *= 0.5;
+        side = 1;
+      } else {
+        lo = tau, glo = g;
+        if (side == -1) ghi *= 0.5;
+        side = -1;
+      }
+      if ((top - lo) * h < 1e-15) break;
+    }
+    if (!found) {  // the bracket collapsed: take its end just past the boundary
+      tau = top;
+      world_.restore(start);
+      if (tau > 0) step_guarded(tau * h, 0);
+    } else if (tau == 0) {
+      world_.restore(start);
+    }
+    // Another hinge may have crossed even earlier; then locate that one inside [0, tau].
+    std::vector<double> now;
+    any_violation(now);
+    bool earlier = false;
+    for (size_t j = 1; j < now.size(); ++j) earlier = earlier || (static_cast<int>(j) != k && now[j] > s_detect_);
+    if (!earlier || tau == 0) {
+      hinge = k;
+      return tau;
+    }
+    now[k] = -1;
+    s_hi = now;
+    hi = tau;
+  }
+  // Dozens of hinges crossing within one step: act on the last one located, the rest follow at once.
+  emit(EventKind::SolverWarning, k, 0, "event location gave up ordering simultaneous crossings");
+  hinge = k;
+  return tau;
+}
+
+// Algorithm 1's action for a hinge that entered a forbidden quadrant: flip-flop (Algorithm 2) when the pair is
+// folded (|a + b| large), lock (Algorithm 3) when it is straight.
+void Ladder::restructure(int k) {
+  HingeInfo& h = hinges_[k];
+  const int c = h.corner;
+  const Vec2 a = corner(k - 1, c ^ 1) - corner(k - 1, c), b = corner(k, c ^ 1) - corner(k, c);
+  if ((a.normalized() + b.normalized()).norm() > std::sqrt(2.0)) {
+    // Face (default): at the fold the two blocks meet face to face, both corner pairs at once, so the meeting
+    // is a momentary weld (the combine on the hinged pair) before the old hinge is undone. Corner: only the far
+    // corners meet (see FlipImpact).
+    double removed = 0;
+    if (spec_.flip_impact == FlipImpact::Face) {
+      removed += world_.combine(particle(k - 1, c), particle(k, c)).energy_removed;
+      world_.separate(particle(k - 1, c), particle(k, c));  // the weld lets go
+    }
+    world_.separate(particle(k - 1, c), particle(k, c));                                  // Algorithm 2, line 1
+    removed += world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1)).energy_removed;  // lines 2-3
+    h.corner = c ^ 1;
+    ++h.flips;
+    emit(EventKind::FlipFlop, k, removed);
+  } else {
+    const core::Restructure r = world_.combine(particle(k - 1, c), particle(k, c));
+    h.status = HingeStatus::Locked;
+    emit(EventKind::Lock, k, r.energy_removed);
+  }
+}
+
+// Algorithm 4's trigger: a lock lets go when its weld, instead of pushing block k out of the forbidden quadrant,
+// has to pull it back from turning into the allowed one. Turning block k by +dphi changes s by sigma (a.b) dphi,
+// so the allowed sense is -sign(sigma a.b).
+void Ladder::check_unlocks() {
+  std::vector<int> unlock;
+  for (size_t k = 1; k < hinges_.size(); ++k) {
+    if (hinges_[k].status != HingeStatus::Locked) continue;
+    const int kk = static_cast<int>(k), c = hinges_[k].corner;
+    const double moment = world_.weld_moment(particle(kk - 1, c), particle(kk, c));
+    const Vec2 a = (corner(kk - 1, c ^ 1) - corner(kk - 1, c)).normalized();
+    const Vec2 b = (corner(kk, c ^ 1) - corner(kk, c)).normalized();
+    const double allowed = side_sign(kk - 1, c) * a.dot(b) > 0 ? -1.0 : 1.0;
+    if (moment * allowed < -spec_.unlock_threshold) unlock.push_back(kk);
+  }
+  for (int k : unlock) {
+    const int c = hinges_[k].corner;
+    world_.separate(particle(k - 1, c), particle(k, c));
+    hinges_[k].status = HingeStatus::Hinged;
+    emit(EventKind::Unlock, k, 0);
+  }
+}
+
+void Ladder::check_block(int i) const {
+  if (i < 0 || i >= spec_.blocks)
+    throw std::invalid_argument("no block " + std::to_string(i) + " (blocks are 0.." + std::to_string(spec_.blocks - 1) + ")");
+}
+
+void Ladder::check_hinge(int k) const {
+  if (k < 0 || k >= spec_.blocks)
+    throw std::invalid_argument("no hinge " + std::to_string(k) + " (hinges are 0.." + std::to_string(spec_.blocks - 1) +
+                                "; hinge 0 is the top block's hold)");
+}
+
+double Ladder::tip_end_time() const {
+  double end = 0;
+  if (hand_)
+    for (const auto& t : hand_->tips) end = std::max(end, t.t0 + t.duration);
+  return end;
+}
+
+void Ladder::tip() {
+  if (!held()) throw std::invalid_argument("the top block is not held, so it cannot be tipped");
+  if (time() < tip_end_time())
+    throw std::invalid_argument("a tip is already in progress (it ends at t = " + std::to_string(tip_end_time()) + " s)");
+  // Turning block 0 by +dpsi changes hinge 1's s by -sigma (a.b) dpsi: the allowed sense is sign(sigma a.b).
+  double sense = -1;  // clockwise, as in the paper, when hinge 1 says nothing
+  if (spec_.blocks >= 2 && hinges_[1].status != HingeStatus::Broken) {
+    const int c = hinges_[1].corner;
+    const Vec2 a = (corner(0, c ^ 1) - corner(0, c)).normalized();
+    const Vec2 b = (corner(1, c ^ 1) - corner(1, c)).normalized();
+    const double d = side_sign(0, c) * a.dot(b);
+    if (d > 0) sense = 1;
+  }
+  hand_->tips.push_back({time(), spec_.tip_duration, sense * std::numbers::pi});
+}
+
+void Ladder::break_hinge(int k) {
+  check_hinge(k);
+  HingeInfo& h = hinges_[k];
+  if (h.status == HingeStatus::Broken) throw std::invalid_argument("hinge " + std::to_string(k) + " is already broken");
+  if (k == 0) {
+    if (spec_.top == Top::Held) {
+      world_.release(0);
+    } else {
+      world_.separate(world_particle_, particle(0, 3));
+    }
+  } else {
+    if (h.status == HingeStatus::Locked) world_.separate(particle(k - 1, h.corner), particle(k, h.corner));
+    world_.separate(particle(k - 1, h.corner), particle(k, h.corner));
+  }
+  h.status = HingeStatus::Broken;
+  emit(EventKind::Break, k, 0);
+}
+
+void Ladder::join_hinge(int k) {
+  check_hinge(k);
+  HingeInfo& h = hinges_[k];
+  if (h.status != HingeStatus::Broken) throw std::invalid_argument("hinge " + std::to_string(k) + " is not broken");
+  if (k == 0 && spec_.top == Top::Free) throw std::invalid_argument("the top block has no hold or pin to join");
+  if (k == 0 && spec_.top == Top::Held) {
+    // The hand takes hold of the block where it is and stops it.
+    const double before = world_.kinetic_energy();
+    hand_->centre = world_.part_position(0);
+    hand_->base_angle = world_.part_angle(0);
+    hand_->tips.clear();
+    world_.set_drive(0, [hand = hand_](double t) { return hand->at(t); });
+    world_.project_velocities();
+    h.status = HingeStatus::Hinged;
+    emit(EventKind::Join, k, before - world_.kinetic_energy());
+    return;
+  }
+  const int pa = k == 0 ? world_particle_ : particle(k - 1, h.corner), pb = particle(k, h.corner);
+  const double gap = (world_.particle_position(pa) - world_.particle_position(pb)).norm();
+  if (gap > spec_.capture_distance)
+    throw std::invalid_argument("hinge " + std::to_string(k) + ": the corners are " + std::to_string(gap * 1e3) +
+                                " mm apart, more than the capture distance of " +
+                                std::to_string(spec_.capture_distance * 1e3) + " mm");
+  const core::Restructure r = world_.combine(pa, pb);
+  h.status = HingeStatus::Hinged;
+  emit(EventKind::Join, k, r.energy_removed);
+}
+
+double Ladder::poke(int block, const Vec2& point, const Vec2& impulse) {
+  check_block(block);
+  return world_.apply_impulse(block, point, impulse);
+}
+
+void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double duration) {
+  check_block(block);
+  if (!(duration > 0) || !std::isfinite(duration)) throw std::invalid_argument("push: the duration must be positive");
+  world_.add_force(block, local_point, force, time() + duration);
+}
+
+std::vector<Ribbon> Ladder::ribbons() const {
+  std::vector<Ribbon> out;
+  for (int k = 1; k < spec_.blocks; ++k) {
+    const HingeInfo& h = hinges_[k];
+    if (h.status == HingeStatus::Broken) continue;
+    Ribbon r;
+    r.hinge = k;
+    r.points[0] = corner(k - 1, h.corner ^ 1);
+    r.points[1] = corner(k, h.corner);
+    r.points[2] = corner(k, h.corner ^ 1);
+    r.outer_on_a = (h.flips + k) % 2 == 1;
+    out.push_back(r);
+  }
+  return out;
+}
+
+}  // namespace ladder::model

@@ -1,0 +1,153 @@
+// The Jacob's ladder built from the engine's primitives (paper sections 4-5).
+//
+// Blocks are seen side-on: a rectangle `length` tall and `thickness` wide, with four corner particles and a centre
+// particle (number 4), numbered as in the paper's Figure 4:
+//  - corner c XOR 1 walks along the length, c XOR 2 across the width;
+//  - hinge k joins blocks k-1 and k at corner c on both blocks, c in {0, 1} for odd k and {2, 3} for even k;
+//  - in the initial column, corners 0 and 1 are on the right edge; the lengthwise vector (corner 0 -> 1) points
+//    up on even blocks and down on odd ones; hinge k starts at corner 0 (odd k) or 3 (even k), i.e. at block
+//    k-1's bottom corner on the right edge for odd k, the left edge for even k.
+// Each corner carries 1/12 of the block's mass and the centre 2/3, which gives exactly the mass, centre and
+// moment of inertia of a uniform rectangle.
+//
+// Hinge k allows relative rotation through one half-turn only (Figure 5). With a = block k-1's and b = block k's
+// unit vector from the hinged corner along the length, and sigma = cross(e_c, w_c) of block k-1 (+1 or -1: the
+// side its body lies on), s = sigma * cross(a, b) is <= 0 in the allowed half and crosses zero only when the pair
+// is straight (a = -b) or folded (a = b). Algorithm 1 acts when s > 0: flip-flop if |a + b| is large (folded),
+// lock if small (straight). Crossings are located in time so the restructure happens where s = 0: at that instant
+// the far corners of a folded pair coincide, and the flip-flop moves the hinge there without any position jump.
+#pragma once
+
+#include "core/world.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace ladder::model {
+
+using core::Vec2;
+
+enum class Top { Held, Pinned, Free };
+// Initial configuration. Straight: the blocks in one vertical column (not at rest under gravity: with corner
+// hinges each block hangs tilted). Hanging: at rest in static equilibrium. Taking moments about hinge k for the
+// blocks below it shows that hinge k, block k's centre and hinge k+1 lie on the block's diagonal, so in equilibrium
+// every diagonal is vertical, whatever the masses: block angles +-atan(thickness / length), alternating.
+enum class Start { Hanging, Straight };
+// How a flip-flop makes velocities consistent. Corner: the paper's Algorithm 2 literally, a perfectly inelastic
+// meeting of the two far corners only (it conserves a held pair's free block's angular momentum about the new
+// hinge); for blocks longer than 1.4x their thickness it reverses the pair's relative spin, so the pair rattles
+// between its two hinges, losing 3/4 of its relative energy per rattle until it comes to rest. Face: the two
+// faces meet (perfectly inelastic for the whole face, a momentary weld), the pair stops folding at once and the
+// hinge moves; the impulses are still internal, so free bodies keep their linear and angular momentum.
+enum class FlipImpact { Face, Corner };
+
+struct LadderSpec {
+  int blocks = 6;
+  double length = 0.064;     // [m], along the hinges' axis of travel (vertical in the hanging ladder)
+  double thickness = 0.013;  // [m]
+  double mass = 0.025;       // [kg] per block, unless `masses` is given
+  std::vector<double> masses;  // per-block masses [kg]; empty = all `mass`
+  Top top = Top::Held;         // held in a hand (kinematic), pinned to the world at its top-left corner, or free
+  Start start = Start::Hanging;
+  FlipImpact flip_impact = FlipImpact::Face;
+  bool logic = true;           // Algorithm 1: flip-flops, locks and unlocks
+  double tip_duration = 0.3;   // [s] for the hand to turn the top block through 180 degrees
+  double unlock_threshold = 1e-5;  // [N m] a lock lets go once its weld pulls harder than this
+  double capture_distance = 0.005; // [m] farthest apart two corners may be for a join
+  // Hinge particles sit this fraction of the thickness in from the edge: 0 is the paper's corners, 0.5 the middle
+  // of the block's end, near where the real toy's ribbons cross (paper, section 4). Corner pivots make each
+  // toppling block lift the whole chain below it by up to the thickness, a potential well that deepens with the
+  // number of blocks below (docs/model.md); an inset pivot shrinks it.
+  double hinge_inset = 0;
+  double kick_omega = 0;     // initial angular velocity of block 1 about its top hinge [rad/s]
+  double tilt = 0;           // initial rotation of the whole column about its top-left corner [rad]
+};
+
+enum class EventKind { FlipFlop, Lock, Unlock, Break, Join, SolverWarning };
+const char* to_string(EventKind);
+
+struct Event {
+  double t = 0;
+  EventKind kind = EventKind::FlipFlop;
+  int hinge = 0;              // hinge k joins blocks k-1 and k; hinge 0 is the top block's hold or pin
+  double energy_removed = 0;  // [J] by the velocity fix of a restructure
+  std::string detail;
+};
+
+enum class HingeStatus { Hinged, Locked, Broken };
+const char* to_string(HingeStatus);
+
+struct HingeInfo {
+  int corner = 0;  // the particle number hinged on both blocks
+  HingeStatus status = HingeStatus::Hinged;
+  int flips = 0;   // flip-flops so far
+};
+
+// A drawable ribbon: a polyline on hinge k's side of the two blocks, wrapping the hinged corner. The real toy
+// shows two outer ribbons on one block's face and one central ribbon on the other; `outer_on_a` says which,
+// and swaps at each flip-flop (paper, Figure 3).
+struct Ribbon {
+  int hinge = 0;
+  Vec2 points[3];
+  bool outer_on_a = true;
+};
+
+class Ladder {
+ public:
+  Ladder(const LadderSpec& spec, const core::Options& options);
+  Ladder(const Ladder&) = delete;
+  Ladder& operator=(const Ladder&) = delete;
+
+  // Advances the simulation by h, locating every flip-flop and lock inside the step and applying Algorithm 1.
+  void advance(double h);
+
+  // --- interventions; each throws std::invalid_argument with the reason when it cannot be done ---
+  void tip();                      // turn the held top block 180 degrees in the allowed direction
+  double tip_end_time() const;     // when the last tip finishes
+  void break_hinge(int k);
+  void join_hinge(int k);
+  double poke(int block, const Vec2& point, const Vec2& impulse);  // impulse at a world point; returns dKE
+  void push(int block, const Vec2& local_point, const Vec2& force, double duration);
+
+  // --- state ---
+  const LadderSpec& spec() const { return spec_; }
+  int blocks() const { return spec_.blocks; }
+  double time() const { return world_.time(); }
+  Vec2 block_centre(int i) const { return world_.part_position(i); }
+  double block_angle(int i) const { return world_.part_angle(i); }
+  Vec2 lengthwise(int i) const;  // unit vector from corner 0 to corner 1
+  Vec2 corner(int block, int c) const { return world_.particle_position(particle(block, c)); }
+  const std::vector<HingeInfo>& hinges() const { return hinges_; }
+  bool held() const;
+  double hinge_measure(int k) const;  // s of the class comment (> 0 means inside a forbidden quadrant)
+  double energy() const { return world_.kinetic_energy() + world_.potential_energy(); }
+  std::vector<Ribbon> ribbons() const;  // computed on demand, only for drawing
+  std::vector<Event> take_events();
+  const core::World& world() const { return world_; }
+  core::World& world() { return world_; }
+
+  static int particle(int block, int c) { return 5 * block + c; }
+
+ private:
+  struct Hand;  // the held top block's prescribed motion
+  void check_block(int i) const;
+  void check_hinge(int k) const;
+  bool any_violation(std::vector<double>& s) const;
+  double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
+  void restructure(int k);
+  void check_unlocks();
+  void emit(EventKind kind, int k, double energy, std::string detail = {});
+  void step_guarded(double h, int depth);
+
+  LadderSpec spec_;
+  core::World world_;
+  std::vector<HingeInfo> hinges_;  // index k; hinge 0 is the hold / pin
+  std::shared_ptr<Hand> hand_;
+  int world_particle_ = -1;  // the pin's world particle when top == Pinned
+  double s_detect_ = 0;      // s above which a hinge is in a forbidden quadrant
+  std::vector<Event> events_;
+  bool warned_ = false;
+};
+
+}  // namespace ladder::model

@@ -1,0 +1,309 @@
+// The engine against closed-form physics: free fall, the compound pendulum's period, energy conservation,
+// momentum conservation through restructuring, exact round trips, and refusals.
+#include "core/world.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <numbers>
+#include <stdexcept>
+
+namespace ladder::core {
+namespace {
+
+constexpr double kL = 0.06, kW = 0.01, kM = 0.02;
+
+// A uniform rectangle kW x kL as five particles: 1/12 of the mass on each corner and 2/3 at the centre give the
+// exact mass, centre and moment of inertia m (L^2 + W^2) / 12. Particle c: 0 bottom-right, 1 top-right,
+// 2 bottom-left, 3 top-left, 4 centre.
+PartDef block(Vec2 centre, double angle = 0, Vec2 v = Vec2::Zero(), double w = 0) {
+  PartDef d;
+  for (int c = 0; c < 4; ++c)
+    d.particles.push_back({kM / 12, Vec2((c & 2) ? -kW / 2 : kW / 2, (c & 1) ? kL / 2 : -kL / 2)});
+  d.particles.push_back({2 * kM / 3, Vec2::Zero()});
+  d.position = centre;
+  d.angle = angle;
+  d.velocity = v;
+  d.omega = w;
+  return d;
+}
+
+int anchor(World& world, Vec2 at) {
+  PartDef pin;
+  pin.particles.push_back({0.0, Vec2::Zero()});
+  pin.position = at;
+  pin.kinematic = true;
+  return world.first_particle(world.add_part(pin));
+}
+
+// Rotates a configuration about the pivot: position and angle of a block hanging from `pivot`.
+Vec2 rotate_about(Vec2 p, Vec2 pivot, double a) { return pivot + Rot::of(a) * (p - pivot); }
+
+double pendulum_period(Integrator integrator, double dt) {
+  Options opt;
+  opt.integrator = integrator;
+  World world(opt);
+  // Pinned at its top-left corner (0, 0); the centre hangs at (W/2, -L/2) when straight. Equilibrium: the centre
+  // straight below the pivot, i.e. the block turned by -atan(W/L)... plus 0.01 rad of amplitude.
+  const double eq = -std::atan2(kW, kL);
+  const double amp = 0.01;
+  const Vec2 straight(kW / 2, -kL / 2);
+  const int part = world.add_part(block(rotate_about(straight, Vec2::Zero(), eq + amp), eq + amp));
+  const int pin = anchor(world, Vec2::Zero());
+  world.connect(pin, world.first_particle(part) + 3);
+  world.finalize();
+  // Upward zero crossings of the angle about equilibrium, linearly interpolated.
+  std::vector<double> crossings;
+  double prev = world.part_angle(part) - eq;
+  while (crossings.size() < 11 && world.time() < 20) {
+    world.step(dt);
+    const double now = world.part_angle(part) - eq;
+    if (prev < 0 && now >= 0) crossings.push_back(world.time() - dt * now / (now - prev));
+    prev = now;
+  }
+  EXPECT_EQ(crossings.size(), 11u);
+  return (crossings.back() - crossings.front()) / 10;
+}
+
+TEST(World, FreeFallIsExactForRK4AndFirstOrderForSymplecticEuler) {
+  const Vec2 g(0, -9.81), x0(0.1, 2.0), v0(0.3, 1.0);
+  for (auto integrator : {Integrator::RK4, Integrator::SymplecticEuler}) {
+    Options opt;
+    opt.integrator = integrator;
+    World world(opt);
+    const int part = world.add_part(block(x0, 0.3, v0, 2.0));
+    const double h = 1e-3;
+    for (int i = 0; i < 1000; ++i) world.step(h);
+    const double t = world.time();
+    const Vec2 exact = x0 + v0 * t + 0.5 * g * t * t;
+    const double err = (world.part_position(part) - exact).norm();
+    if (integrator == Integrator::RK4) {
+      EXPECT_LT(err, 1e-12);  // RK4 integrates a quadratic exactly; what is left is rounding
+    } else {
+      // Symplectic Euler: x_n = x0 + v0 t + g h^2 n (n + 1) / 2, off by exactly g h t / 2.
+      EXPECT_NEAR(err, 0.5 * g.norm() * h * t, 1e-9);
+    }
+    EXPECT_NEAR(world.part_angle(part), 0.3 + 2.0 * t, 1e-12);
+  }
+}
+
+// The compound pendulum: T = 2 pi sqrt(I_P / (m g d)), with I_P = m (L^2 + W^2) / 12 + m d^2 about the pivot and
+// d = sqrt(L^2 + W^2) / 2; at 0.01 rad the amplitude correction (1 + a^2 / 16) is 6e-6, well inside the 0.1 %
+// the issue asks for. Measured over ten periods for every integrator.
+TEST(World, CompoundPendulumPeriodWithinPointOnePercent) {
+  const double d = 0.5 * std::hypot(kL, kW);
+  const double ip = kM * (kL * kL + kW * kW) / 12 + kM * d * d;
+  const double expected = 2 * std::numbers::pi * std::sqrt(ip / (kM * 9.81 * d)) * (1 + 1e-4 / 16);
+  for (auto [integrator, dt] : {std::pair{Integrator::SymplecticEuler, 1e-3}, std::pair{Integrator::Rattle, 1e-3},
+                                std::pair{Integrator::RK4, 1e-3}, std::pair{Integrator::Euler, 1e-4}}) {
+    const double period = pendulum_period(integrator, dt);
+    EXPECT_NEAR(period / expected, 1.0, 1e-3) << to_string(integrator);
+  }
+}
+
+// A free double pendulum (two blocks, no damping) for 20 s: the symplectic integrators keep the energy error
+// bounded, with no drift between the first and the last two seconds.
+TEST(World, SymplecticIntegratorsConserveEnergyWithoutDrift) {
+  for (auto integrator : {Integrator::SymplecticEuler, Integrator::Rattle}) {
+    Options opt;
+    opt.integrator = integrator;
+    World world(opt);
+    const int b0 = world.add_part(block(Vec2(kW / 2, -kL / 2)));
+    const int b1 = world.add_part(block(Vec2(kW / 2, -3 * kL / 2), 0, Vec2(0.15, -0.025), 5.0));
+    const int pin = anchor(world, Vec2::Zero());
+    world.connect(pin, world.first_particle(b0) + 3);
+    world.connect(world.first_particle(b0), world.first_particle(b1) + 1);  // b0 bottom-right to b1 top-right
+    world.finalize();
+    world.project_velocities();
+    const double e0 = world.kinetic_energy() + world.potential_energy();
+    double scale = 0;  // the largest kinetic energy of the run: the energy the motion exchanges
+    double worst = 0, first = 0, last = 0;
+    int nfirst = 0, nlast = 0;
+    for (int i = 0; i < 20000; ++i) {
+      world.step(1e-3);
+      const double e = world.kinetic_energy() + world.potential_energy() - e0;
+      scale = std::max(scale, world.kinetic_energy());
+      worst = std::max(worst, std::abs(e));
+      if (i < 2000) first += e, ++nfirst;
+      if (i >= 18000) last += e, ++nlast;
+    }
+    // First order: the error oscillates with amplitude O(h); second order (RATTLE): O(h^2).
+    // (measured 1.4e-2 and 1.2e-4 here; w h is about 0.02)
+    const double bound = integrator == Integrator::Rattle ? 3e-4 : 3e-2;
+    EXPECT_LT(worst / scale, bound) << to_string(integrator) << " worst " << worst / scale;
+    EXPECT_LT(std::abs(last / nlast - first / nfirst) / scale, bound / 5) << to_string(integrator);
+    EXPECT_LT(world.max_hinge_error(), 1e-9);
+  }
+}
+
+// Three free blocks in a chain, no gravity, spinning and drifting: every restructuring is internal, so the total
+// linear momentum and the angular momentum about any point are conserved, to rounding (1e-12 relative).
+class Restructuring : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Options opt;
+    opt.gravity = Vec2::Zero();
+    world = World(opt);
+    // A bent chain: block 1's top-right corner on block 0's bottom-right, block 2's top-left on block 1's
+    // bottom-left, each block moving differently, so that every combine is a real inelastic meeting.
+    const double a[3] = {0.0, 0.4, -0.3};
+    Vec2 c[3];
+    c[0] = Vec2(0.1, 1.0);
+    c[1] = c[0] + Rot::of(a[0]) * Vec2(kW / 2, -kL / 2) - Rot::of(a[1]) * Vec2(kW / 2, kL / 2);
+    c[2] = c[1] + Rot::of(a[1]) * Vec2(-kW / 2, -kL / 2) - Rot::of(a[2]) * Vec2(-kW / 2, kL / 2);
+    for (int i = 0; i < 3; ++i)
+      parts.push_back(world.add_part(block(c[i], a[i], Vec2(0.2 * i - 0.1, 0.05 * i + 0.02), 1.5 - i)));
+    world.connect(p(0, 0), p(1, 1));
+    world.finalize();
+    world.project_velocities();
+  }
+  int p(int block, int c) const { return world.first_particle(parts[block]) + c; }
+  void expect_conserved(const std::function<void()>& op) {
+    const Vec2 origin(0.37, -0.21);
+    const Vec2 lin = world.linear_momentum(parts);
+    const double ang = world.angular_momentum(parts, origin);
+    const double ke = world.kinetic_energy();
+    op();
+    const double scale_l = std::max(lin.norm(), 1e-3);
+    EXPECT_LT((world.linear_momentum(parts) - lin).norm() / scale_l, 1e-12);
+    EXPECT_NEAR(world.angular_momentum(parts, origin), ang, 1e-12 * std::max(std::abs(ang), 1e-4));
+    EXPECT_LE(world.kinetic_energy(), ke * (1 + 1e-12));
+  }
+  World world;
+  std::vector<int> parts;
+};
+
+TEST_F(Restructuring, CombineWeldAndFlipConserveMomentum) {
+  // Hinge block 2 to block 1 where their corners touch: an inelastic meeting of two moving bodies.
+  Restructure hinge;
+  expect_conserved([&] { hinge = world.combine(p(1, 2), p(2, 3)); });
+  EXPECT_GT(hinge.energy_removed, 1e-6);
+  for (int i = 0; i < 50; ++i) world.step(1e-3);
+  // Lock: combine the hinged pair again.
+  Restructure r;
+  expect_conserved([&] { r = world.combine(p(0, 0), p(1, 1)); });
+  EXPECT_EQ(r.kind, JointKind::Weld);
+  EXPECT_GE(r.energy_removed, 0);
+  EXPECT_EQ(world.body_count(), 2);
+  // Unlock: the weld splits back into two bodies moving as they did.
+  expect_conserved([&] { world.separate(p(0, 0), p(1, 1)); });
+  for (int i = 0; i < 50; ++i) world.step(1e-3);
+  EXPECT_LT(world.max_hinge_error(), 1e-9);
+}
+
+// A folded pair (block 1 turned half a turn about the hinge, lying along block 0) spinning and drifting: moving
+// the hinge to the far corners, which touch, is a perfectly inelastic meeting there; momentum is conserved.
+TEST(World, FlipOfAFoldedPairConservesMomentum) {
+  Options opt;
+  opt.gravity = Vec2::Zero();
+  World world(opt);
+  const Vec2 hinge(0.2, 0.5);
+  const int b0 = world.add_part(block(hinge - Vec2(kW / 2, -kL / 2), 0, Vec2(0.1, -0.2), 0.7));
+  // Block 1's top-right corner (W/2, L/2) on the hinge, turned by pi: it lies along block 0, right of it.
+  const int b1 = world.add_part(block(hinge - Rot::of(std::numbers::pi) * Vec2(kW / 2, kL / 2), std::numbers::pi,
+                                      Vec2(-0.3, 0.1), -4.0));
+  const int p0 = world.first_particle(b0), p1 = world.first_particle(b1);
+  world.connect(p0 + 0, p1 + 1);
+  world.finalize();
+  world.project_velocities();
+  ASSERT_LT((world.particle_position(p0 + 1) - world.particle_position(p1 + 0)).norm(), 1e-15);  // far corners touch
+  const Vec2 origin(-0.4, 0.9);
+  const Vec2 lin = world.linear_momentum({b0, b1});
+  const double ang = world.angular_momentum({b0, b1}, origin);
+  const double ke = world.kinetic_energy();
+  world.separate(p0 + 0, p1 + 1);
+  const Restructure r = world.combine(p0 + 1, p1 + 0);
+  EXPECT_LT((world.linear_momentum({b0, b1}) - lin).norm(), 1e-12 * lin.norm());
+  EXPECT_NEAR(world.angular_momentum({b0, b1}, origin), ang, 1e-12 * std::abs(ang));
+  EXPECT_NEAR(r.energy_removed, ke - world.kinetic_energy(), 1e-15);
+  EXPECT_GT(r.energy_removed, 0);
+  const Vec2 va = world.particle_velocity(p0 + 1), vb = world.particle_velocity(p1 + 0);
+  EXPECT_LT((va - vb).norm(), 1e-12);  // the new hinge's particles now move together
+}
+
+TEST_F(Restructuring, RoundTripsRestoreTheModel) {
+  for (int i = 0; i < 20; ++i) world.step(1e-3);
+  const int bodies = world.body_count();
+  std::vector<Vec2> where;
+  for (int i = 0; i < world.particle_count(); ++i) where.push_back(world.particle_position(i));
+  const auto check = [&] {
+    EXPECT_EQ(world.body_count(), bodies);
+    for (int b = 0; b < world.body_count(); ++b) EXPECT_EQ(world.body_parts(b).size(), 1u);
+    EXPECT_EQ(world.find_joint(p(0, 0), p(1, 1)) >= 0, true);
+    EXPECT_EQ(world.joint_kind(world.find_joint(p(0, 0), p(1, 1))), JointKind::Hinge);
+    for (int i = 0; i < world.particle_count(); ++i) EXPECT_LT((world.particle_position(i) - where[i]).norm(), 1e-15);
+  };
+  world.combine(p(0, 0), p(1, 1));  // lock
+  EXPECT_EQ(world.body_count(), bodies - 1);
+  world.separate(p(0, 0), p(1, 1));  // unlock
+  check();
+  world.separate(p(0, 0), p(1, 1));  // break
+  EXPECT_LT(world.find_joint(p(0, 0), p(1, 1)), 0);
+  world.combine(p(0, 0), p(1, 1));  // join again at the same (coincident) corners
+  check();
+}
+
+TEST_F(Restructuring, RefusesWhatItCannotSolveAndChangesNothing) {
+  world.combine(p(1, 2), p(2, 3));
+  const int joints_before = world.find_joint(p(1, 2), p(2, 3));
+  // A fourth block hinged to the middle one's centre: body 1 would be in three hinges.
+  const int extra = world.add_part(block(Vec2(0.3, 1.0 - kL)));
+  try {
+    world.combine(world.first_particle(extra), p(1, 4));
+    FAIL() << "a third hinge on one body was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at most two hinges"), std::string::npos) << e.what();
+  }
+  // Closing the chain into a loop.
+  try {
+    world.combine(p(2, 0), p(0, 3));
+    FAIL() << "a loop was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("loop"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(world.find_joint(p(1, 2), p(2, 3)), joints_before);
+  EXPECT_LT(world.find_joint(p(2, 0), p(0, 3)), 0);
+  EXPECT_THROW(world.combine(p(0, 0), p(0, 1)), std::invalid_argument);      // same part
+  EXPECT_THROW(world.separate(p(0, 3), p(2, 1)), std::invalid_argument);     // nothing joins them
+  EXPECT_THROW(world.combine(-1, p(0, 1)), std::invalid_argument);           // no such particle
+  EXPECT_THROW(world.step(std::nan("")), std::invalid_argument);
+  EXPECT_THROW(world.apply_impulse(parts[0], Vec2(0, 0), Vec2(std::nan(""), 0)), std::invalid_argument);
+}
+
+// Same model, same steps: the same bits (floating-point contraction is off in the build).
+TEST(World, DeterministicToTheBit) {
+  const auto run = [] {
+    World world;
+    const int b0 = world.add_part(block(Vec2(kW / 2, -kL / 2)));
+    const int b1 = world.add_part(block(Vec2(kW / 2, -3 * kL / 2), 0, Vec2(0.15, -0.025), 5.0));
+    world.connect(anchor(world, Vec2::Zero()), world.first_particle(b0) + 3);
+    world.connect(world.first_particle(b0), world.first_particle(b1) + 1);
+    for (int i = 0; i < 3000; ++i) world.step(1e-3);
+    return world.save();
+  };
+  const Snapshot a = run(), b = run();
+  ASSERT_EQ(a.bodies.size(), b.bodies.size());
+  EXPECT_EQ(std::memcmp(a.bodies.data(), b.bodies.data(), a.bodies.size() * sizeof(BodyState)), 0);
+}
+
+// An impulse on a free chain changes its total linear momentum by exactly the impulse, and the hinges carry it.
+TEST(World, ImpulseTravelsThroughTheChain) {
+  Options opt;
+  opt.gravity = Vec2::Zero();
+  World world(opt);
+  const int b0 = world.add_part(block(Vec2(0, 0)));
+  const int b1 = world.add_part(block(Vec2(0, -kL)));
+  world.connect(world.first_particle(b0), world.first_particle(b1) + 1);
+  world.finalize();
+  const Vec2 j(0.01, 0.002);
+  world.apply_impulse(b1, world.part_position(b1) + Vec2(0, -kL / 2), j);
+  EXPECT_LT((world.linear_momentum({b0, b1}) - j).norm(), 1e-15);
+  EXPECT_GT(world.part_velocity(b0).norm(), 0.0);  // the upper block moved too
+  const Vec2 pa = world.particle_velocity(world.first_particle(b0));
+  const Vec2 pb = world.particle_velocity(world.first_particle(b1) + 1);
+  EXPECT_LT((pa - pb).norm(), 1e-14);  // the hinged corners move together
+}
+
+}  // namespace
+}  // namespace ladder::core
