@@ -1,0 +1,693 @@
+#include "scene/scene.hpp"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <system_error>
+#include <utility>
+
+namespace ladder::scene {
+
+namespace {
+
+using core::Vec2;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kMaxBlocks = 10'000'000;
+
+// ---------------------------------------------------------------------------------------------------------------
+// The schema: every documented key with its type and valid range. keys_help() prints it and the reader takes each
+// key's range from it, so the help, the checks and the did-you-mean hints cannot drift apart.
+
+// An interval of allowed values; an infinite end is no bound.
+struct Range {
+  double lo = -kInf, hi = kInf;
+  bool lo_open = false, hi_open = false;
+
+  bool contains(double v) const {
+    return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+  }
+};
+constexpr Range kAnyNumber{};
+constexpr Range above(double lo) { return {lo, kInf, true, false}; }
+constexpr Range at_least(double lo) { return {lo, kInf, false, false}; }
+constexpr Range between(double lo, double hi) { return {lo, hi, false, false}; }
+
+enum class Kind { Integer, Number, Boolean, String, Choice, Pair, Numbers };
+
+struct KeyDef {
+  std::string_view name;           // "table.key"
+  Kind kind = Kind::Number;
+  Range range{};                   // of the value, or of each element of a list
+  std::string_view choices{};      // Kind::Choice, separated by '|'
+  std::string_view help{};         // with the unit in brackets
+  std::string_view range_text{};   // replaces the printed range when it depends on other keys
+};
+
+constexpr std::array kKeys{
+    KeyDef{.name = "scene.name", .kind = Kind::String, .help = "title shown to the user"},
+    KeyDef{.name = "scene.description", .kind = Kind::String, .help = "what the scene shows"},
+    KeyDef{.name = "ladder.blocks", .kind = Kind::Integer, .range = between(1, kMaxBlocks),
+           .help = "number of blocks; without it, the length of ladder.masses"},
+    KeyDef{.name = "ladder.length", .kind = Kind::Number, .range = above(0), .help = "block length [m]"},
+    KeyDef{.name = "ladder.thickness", .kind = Kind::Number, .range = above(0), .help = "block thickness [m]"},
+    KeyDef{.name = "ladder.mass", .kind = Kind::Number, .range = above(0), .help = "mass of each block [kg]"},
+    KeyDef{.name = "ladder.masses", .kind = Kind::Numbers, .range = above(0),
+           .help = "mass of each block in turn, one per block [kg]"},
+    KeyDef{.name = "ladder.top", .kind = Kind::Choice, .choices = "held|pinned|free",
+           .help = "top block held in a hand, pinned at its top-left corner, or free"},
+    KeyDef{.name = "ladder.start", .kind = Kind::Choice, .choices = "hanging|straight",
+           .help = "start at rest, or as a straight vertical column"},
+    KeyDef{.name = "ladder.logic", .kind = Kind::Boolean, .help = "flip-flops, locks and unlocks (Algorithm 1)"},
+    KeyDef{.name = "ladder.flip_impact", .kind = Kind::Choice, .choices = "face|corner",
+           .help = "a flip-flop's inelastic meeting: the whole face, or the far corners only (the paper's)"},
+    KeyDef{.name = "ladder.hinge_inset", .kind = Kind::Number, .range = {0, 0.5, false, true},
+           .help = "hinge distance in from the block's edge [fraction of the thickness]"},
+    KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = above(0),
+           .help = "time the hand takes to turn the top block over [s]"},
+    KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
+           .help = "weld moment above which a lock lets go [N m]"},
+    KeyDef{.name = "ladder.capture_distance", .kind = Kind::Number, .range = at_least(0),
+           .help = "farthest apart two corners may be for a join [m]"},
+    KeyDef{.name = "initial.kick_omega", .kind = Kind::Number, .range = kAnyNumber,
+           .help = "initial angular velocity of block 1 about its top hinge [rad/s]"},
+    KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = kAnyNumber,
+           .help = "initial rotation of the whole ladder about its top-left corner [rad]"},
+    KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(1e-7, 0.1), .help = "time step [s]"},
+    KeyDef{.name = "sim.integrator", .kind = Kind::Choice, .choices = "euler|symplectic_euler|rattle|rk4",
+           .help = "time integrator"},
+    KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
+    KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
+           .help = "hinge constraint solver"},
+    KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = above(0),
+           .help = "hinge position error the solver drives below [m]"},
+    KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
+           .help = "iterations per nonlinear solve"},
+    KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = at_least(0),
+           .help = "drag force -c m v on each block [1/s]"},
+    KeyDef{.name = "damping.angular", .kind = Kind::Number, .range = at_least(0),
+           .help = "drag torque -c I w on each block [1/s]"},
+    KeyDef{.name = "damping.hinge", .kind = Kind::Number, .range = at_least(0),
+           .help = "viscous hinge torque -c (w_b - w_a) [N m s]"},
+    KeyDef{.name = "timeline.t", .kind = Kind::Number, .range = at_least(0),
+           .help = "time the command is applied, required [s]"},
+    KeyDef{.name = "timeline.command", .kind = Kind::Choice, .choices = "tip|poke|push|break|join",
+           .help = "what to do, required"},
+    KeyDef{.name = "timeline.block", .kind = Kind::Integer, .range = at_least(0),
+           .help = "block to poke or push, required by both", .range_text = ">= 0 and < ladder.blocks"},
+    KeyDef{.name = "timeline.hinge", .kind = Kind::Integer, .range = at_least(0),
+           .help = "hinge to break or join, required by both; hinge 0 is the top block's hold or pin",
+           .range_text = ">= 0 and < ladder.blocks"},
+    KeyDef{.name = "timeline.impulse", .kind = Kind::Pair, .help = "poke impulse, required by poke [N s]"},
+    KeyDef{.name = "timeline.at", .kind = Kind::Pair,
+           .help = "poke: world point; push: point in the block's frame; default the block's centre [m]"},
+    KeyDef{.name = "timeline.force", .kind = Kind::Pair, .help = "push force, required by push [N]"},
+    KeyDef{.name = "timeline.duration", .kind = Kind::Number, .range = above(0),
+           .help = "push duration, required by push [s]"},
+};
+
+constexpr std::array<std::string_view, 6> kTables{"scene", "ladder", "initial", "sim", "solver", "damping"};
+
+// Which timeline fields each command takes besides t and command.
+struct CommandDef {
+  std::string_view name, required, optional;  // field names separated by spaces
+};
+constexpr std::array kCommands{
+    CommandDef{"tip", "", ""},
+    CommandDef{"poke", "block impulse", "at"},
+    CommandDef{"push", "block force duration", "at"},
+    CommandDef{"break", "hinge", ""},
+    CommandDef{"join", "hinge", ""},
+};
+
+const KeyDef* find_key(std::string_view name) {
+  for (const KeyDef& k : kKeys)
+    if (k.name == name) return &k;
+  return nullptr;
+}
+
+// For names the code itself passes: a miss is a bug here, not a user error.
+const KeyDef& key_def(std::string_view name) {
+  const KeyDef* k = find_key(name);
+  if (!k) throw std::logic_error("scene: undocumented key " + std::string(name));
+  return *k;
+}
+
+std::string_view table_of(std::string_view key) { return key.substr(0, key.find('.')); }
+std::string_view leaf_of(std::string_view key) { return key.substr(key.find('.') + 1); }
+
+std::vector<std::string_view> split(std::string_view s, char sep) {
+  std::vector<std::string_view> out;
+  while (!s.empty()) {
+    const size_t i = s.find(sep);
+    out.push_back(s.substr(0, i));
+    if (i == std::string_view::npos) break;
+    s.remove_prefix(i + 1);
+  }
+  return out;
+}
+
+bool contains_word(std::string_view list, std::string_view word) {
+  const auto words = split(list, ' ');
+  return std::find(words.begin(), words.end(), word) != words.end();
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Messages
+
+// Shortest text that reads back as the same double ("0.001", "1e-12", "-1").
+std::string format_number(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  // Whole numbers print as integers: to_chars would pick "1e+07" for ten million.
+  if (v == std::trunc(v) && std::abs(v) < 1e15) return std::to_string(static_cast<long long>(v));
+  std::array<char, 32> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), r.ptr);
+}
+
+std::string describe(const Range& r) {
+  std::string lo, hi;
+  if (std::isfinite(r.lo)) lo = (r.lo_open ? "> " : ">= ") + format_number(r.lo);
+  if (std::isfinite(r.hi)) hi = (r.hi_open ? "< " : "<= ") + format_number(r.hi);
+  if (!lo.empty() && !hi.empty()) return lo + " and " + hi;
+  return lo + hi;
+}
+
+std::string a_type(const toml::node& n) {
+  switch (n.type()) {
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a floating-point number";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::table: return "a table";
+    case toml::node_type::date: return "a date";
+    case toml::node_type::time: return "a time";
+    case toml::node_type::date_time: return "a date-time";
+    case toml::node_type::none: break;
+  }
+  return "nothing";
+}
+
+std::string position(std::string_view source, const toml::source_position& p) {
+  return std::string(source) + ":" + std::to_string(p.line) + ":" + std::to_string(p.column);
+}
+
+// Edit distance counting an adjacent transposition as one edit (optimal string alignment).
+size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  }
+  return d[a.size()][b.size()];
+}
+
+// " (did you mean 'ladder.blocks'?)" for the nearest candidate within two edits, or "". A name without a table
+// is also compared with the candidates' last parts, so `blocks` at the top level suggests ladder.blocks.
+std::string did_you_mean(std::string_view name, const std::vector<std::string_view>& candidates) {
+  const bool bare = name.find('.') == std::string_view::npos;
+  std::string_view best;
+  size_t best_distance = 3;
+  for (std::string_view c : candidates) {
+    size_t d = edit_distance(name, c);
+    if (bare && c.find('.') != std::string_view::npos) d = std::min(d, edit_distance(name, leaf_of(c)));
+    // d < size: a one-letter name is not "near" every other one-letter name.
+    if (d < best_distance && d < name.size()) best = c, best_distance = d;
+  }
+  return best.empty() ? std::string() : " (did you mean '" + std::string(best) + "'?)";
+}
+
+std::vector<std::string_view> file_key_names() {
+  std::vector<std::string_view> names(kTables.begin(), kTables.end());
+  names.push_back("timeline");
+  for (const KeyDef& k : kKeys) names.push_back(k.name);
+  return names;
+}
+
+// Keys --set may change: everything but the timeline, which is a list of entries.
+std::vector<std::string_view> settable_key_names() {
+  std::vector<std::string_view> names;
+  for (const KeyDef& k : kKeys)
+    if (table_of(k.name) != "timeline") names.push_back(k.name);
+  return names;
+}
+
+// Where a value came from, for messages: its position in the file, or the --set override that supplied it.
+struct Site {
+  std::string_view source;  // file name
+  std::string_view set;     // the override's text when it supplied the value, else empty
+  std::string name;         // the key as the user knows it: "ladder.masses[2]", "timeline[0].block"
+
+  std::string at(const toml::source_position& p) const {
+    return set.empty() ? position(source, p) : "--set " + std::string(set);
+  }
+  [[noreturn]] void fail(const toml::source_position& p, const std::string& message) const {
+    throw SceneError(at(p) + ": " + message);
+  }
+  [[noreturn]] void fail(const toml::node& n, const std::string& message) const { fail(n.source().begin, message); }
+  Site element(size_t i) const { return {source, set, name + "[" + std::to_string(i) + "]"}; }
+  Site field(std::string_view f) const { return {source, set, name + "." + std::string(f)}; }
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+// Typed conversion of one node, with the checks every key of that kind gets.
+
+double to_number(const toml::node& n, const Site& s, const Range& r) {
+  double v = 0;
+  if (const auto* i = n.as_integer()) {
+    v = static_cast<double>(i->get());
+  } else if (const auto* f = n.as_floating_point()) {
+    v = f->get();
+  } else {
+    s.fail(n, s.name + " must be a number, not " + a_type(n));
+  }
+  if (!std::isfinite(v)) s.fail(n, s.name + " must be finite (got " + format_number(v) + ")");
+  if (!r.contains(v)) s.fail(n, s.name + " must be " + describe(r) + " (got " + format_number(v) + ")");
+  return v;
+}
+
+// Integer keys refuse 6.0: a count or an index written as a float is more likely a slip than intended.
+int to_int(const toml::node& n, const Site& s, const Range& r) {
+  const auto* i = n.as_integer();
+  if (!i) s.fail(n, s.name + " must be an integer, not " + a_type(n));
+  const std::int64_t v = i->get();
+  if (!r.contains(static_cast<double>(v)))
+    s.fail(n, s.name + " must be " + describe(r) + " (got " + std::to_string(v) + ")");
+  return static_cast<int>(v);  // every integer range here lies within int
+}
+
+bool to_bool(const toml::node& n, const Site& s) {
+  const auto* b = n.as_boolean();
+  if (!b) s.fail(n, s.name + " must be a boolean (true or false), not " + a_type(n));
+  return b->get();
+}
+
+std::string to_text(const toml::node& n, const Site& s) {
+  const auto* t = n.as_string();
+  if (!t) s.fail(n, s.name + " must be a string, not " + a_type(n));
+  return t->get();
+}
+
+const toml::array& to_array(const toml::node& n, const Site& s, std::string_view of) {
+  const auto* a = n.as_array();
+  if (!a) s.fail(n, s.name + " must be an array of " + std::string(of) + ", not " + a_type(n));
+  return *a;
+}
+
+Vec2 to_vec2(const toml::node& n, const Site& s) {
+  const toml::array& a = to_array(n, s, "2 numbers");
+  if (a.size() != 2)
+    s.fail(n, s.name + " must have exactly 2 elements [x, y] (got " + std::to_string(a.size()) + ")");
+  return {to_number(*a.get(0), s.element(0), kAnyNumber), to_number(*a.get(1), s.element(1), kAnyNumber)};
+}
+
+std::vector<double> to_numbers(const toml::node& n, const Site& s, const Range& r) {
+  const toml::array& a = to_array(n, s, "numbers");
+  std::vector<double> out;
+  out.reserve(a.size());
+  for (size_t i = 0; i < a.size(); ++i) out.push_back(to_number(*a.get(i), s.element(i), r));
+  return out;
+}
+
+// The index of the value in `choices` ("held|pinned|free").
+size_t to_choice(const toml::node& n, const Site& s, std::string_view choices) {
+  const std::string text = to_text(n, s);
+  const auto names = split(choices, '|');
+  const auto it = std::find(names.begin(), names.end(), text);
+  if (it != names.end()) return static_cast<size_t>(it - names.begin());
+  std::string list;
+  for (size_t i = 0; i < names.size(); ++i) list += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + std::string(names[i]);
+  s.fail(n, s.name + " must be " + list + " (got '" + text + "')" + did_you_mean(text, names));
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Structure: every table and key must be documented. Checked before any value so that a misspelt key is reported
+// as such rather than silently left at its default.
+
+struct Problem {
+  toml::source_position at;
+  std::string message;
+};
+
+std::string unknown(std::string_view what, std::string_view name, const std::vector<std::string_view>& candidates) {
+  return "unknown " + std::string(what) + " '" + std::string(name) + "'" + did_you_mean(name, candidates);
+}
+
+void check_keys(std::string_view table, const toml::table& t, std::vector<Problem>& out) {
+  for (auto&& [k, v] : t) {
+    const std::string name = std::string(table) + "." + std::string(k.str());
+    if (!find_key(name)) out.push_back({k.source().begin, unknown("key", name, file_key_names())});
+  }
+}
+
+void check_timeline(const toml::node& v, std::vector<Problem>& out) {
+  const auto* a = v.as_array();
+  if (!a) {
+    out.push_back({v.source().begin, "timeline must be an array of tables ([[timeline]]), not " + a_type(v)});
+    return;
+  }
+  for (size_t i = 0; i < a->size(); ++i) {
+    const toml::node& e = *a->get(i);
+    if (const auto* t = e.as_table())
+      check_keys("timeline", *t, out);
+    else
+      out.push_back({e.source().begin, "timeline[" + std::to_string(i) + "] must be a table, not " + a_type(e)});
+  }
+}
+
+void check_structure(const toml::table& root, std::string_view source) {
+  std::vector<Problem> problems;
+  for (auto&& [k, v] : root) {
+    const std::string_view name = k.str();
+    if (name == "timeline") {
+      check_timeline(v, problems);
+    } else if (std::find(kTables.begin(), kTables.end(), name) == kTables.end()) {
+      problems.push_back({k.source().begin, unknown(v.is_table() ? "table" : "key", name, file_key_names())});
+    } else if (const auto* t = v.as_table()) {
+      check_keys(name, *t, problems);
+    } else {
+      problems.push_back({v.source().begin, std::string(name) + " must be a table, not " + a_type(v)});
+    }
+  }
+  if (problems.empty()) return;
+  // The first problem in the file, not in toml++'s (alphabetical) key order.
+  const auto first = std::min_element(problems.begin(), problems.end(),
+                                      [](const Problem& a, const Problem& b) { return a.at < b.at; });
+  throw SceneError(position(source, first->at) + ": " + first->message);
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Overrides
+
+using Origins = std::map<std::string, std::string, std::less<>>;  // key -> the override text that set it
+
+std::string_view trim(std::string_view s) {
+  const size_t b = s.find_first_not_of(" \t");
+  if (b == std::string_view::npos) return {};
+  return s.substr(b, s.find_last_not_of(" \t") - b + 1);
+}
+
+// VALUE as TOML, or as a bare string when it is not valid TOML (so `sim.integrator=rk4` needs no quotes).
+void assign_value(toml::table& target, std::string_view leaf, std::string_view value) {
+  try {
+    toml::table parsed = toml::parse("v = " + std::string(value));
+    if (parsed.size() == 1 && parsed.contains("v")) {
+      parsed.get("v")->visit([&](auto&& node) { target.insert_or_assign(leaf, std::move(node)); });
+      return;
+    }
+  } catch (const toml::parse_error&) {
+    // not TOML: falls through to a bare string
+  }
+  target.insert_or_assign(leaf, std::string(trim(value)));
+}
+
+Origins apply_overrides(toml::table& root, const std::vector<std::string>& overrides) {
+  Origins origins;
+  for (const std::string& text : overrides) {
+    const auto fail = [&](const std::string& message) { throw SceneError("--set " + text + ": " + message); };
+    const size_t eq = text.find('=');
+    if (eq == std::string::npos) fail("expected KEY=VALUE, e.g. sim.dt=0.0005");
+    const std::string_view key = trim(std::string_view(text).substr(0, eq));
+    const KeyDef* def = find_key(key);
+    if (!def || table_of(key) == "timeline") fail(unknown("key", key, settable_key_names()));
+    const std::string table(table_of(key));
+    if (!root.contains(table)) root.insert_or_assign(table, toml::table{});
+    assign_value(*root.get_as<toml::table>(table), leaf_of(key), std::string_view(text).substr(eq + 1));
+    origins.insert_or_assign(std::string(key), text);  // the last override of a key wins
+  }
+  return origins;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Reading documented keys out of the merged document
+
+class Reader {
+ public:
+  Reader(const toml::table& root, std::string_view source, const Origins& origins)
+      : root_(root), source_(source), origins_(origins) {}
+
+  const toml::node* find(std::string_view key) const {
+    const auto* t = root_.get_as<toml::table>(table_of(key));
+    return t ? t->get(leaf_of(key)) : nullptr;
+  }
+  bool overridden(std::string_view key) const { return origins_.find(key) != origins_.end(); }
+  Site site(std::string_view key) const {
+    const auto it = origins_.find(key);
+    return {source_, it == origins_.end() ? std::string_view() : std::string_view(it->second), std::string(key)};
+  }
+
+  void get(std::string_view key, int& out) const {
+    if (const toml::node* n = find(key)) out = to_int(*n, site(key), key_def(key).range);
+  }
+  void get(std::string_view key, double& out) const {
+    if (const toml::node* n = find(key)) out = to_number(*n, site(key), key_def(key).range);
+  }
+  void get(std::string_view key, bool& out) const {
+    if (const toml::node* n = find(key)) out = to_bool(*n, site(key));
+  }
+  void get(std::string_view key, std::string& out) const {
+    if (const toml::node* n = find(key)) out = to_text(*n, site(key));
+  }
+  void get(std::string_view key, Vec2& out) const {
+    if (const toml::node* n = find(key)) out = to_vec2(*n, site(key));
+  }
+  void get(std::string_view key, std::vector<double>& out) const {
+    if (const toml::node* n = find(key)) out = to_numbers(*n, site(key), key_def(key).range);
+  }
+  // A Kind::Choice key: `values` lists the results in the order of the key's choices.
+  template <class T, size_t N>
+  void get(std::string_view key, T& out, const std::array<T, N>& values) const {
+    if (const toml::node* n = find(key)) out = values.at(to_choice(*n, site(key), key_def(key).choices));
+  }
+  // A name the core parses itself (integrator, solver), so a name it adds needs no change here.
+  template <class T>
+  void get(std::string_view key, T& out, T (*parse)(const std::string&)) const {
+    const toml::node* n = find(key);
+    if (!n) return;
+    const Site s = site(key);
+    try {
+      out = parse(to_text(*n, s));
+    } catch (const std::invalid_argument& e) {
+      s.fail(*n, s.name + ": " + e.what());
+    }
+  }
+
+ private:
+  const toml::table& root_;
+  std::string_view source_;
+  const Origins& origins_;
+};
+
+// blocks and masses must agree; masses alone set blocks.
+void read_blocks(const Reader& r, model::LadderSpec& l) {
+  r.get("ladder.blocks", l.blocks);
+  r.get("ladder.masses", l.masses);
+  const toml::node* masses = r.find("ladder.masses");
+  if (!masses) return;
+  const Site s = r.site("ladder.masses");
+  const auto count = l.masses.size();
+  if (count == 0) s.fail(*masses, "ladder.masses must not be empty");
+  if (!r.find("ladder.blocks")) {
+    if (count > static_cast<size_t>(kMaxBlocks))
+      s.fail(*masses, "ladder.masses must have at most " + std::to_string(kMaxBlocks) + " entries");
+    l.blocks = static_cast<int>(count);
+    return;
+  }
+  if (count == static_cast<size_t>(l.blocks)) return;
+  const std::string message = "ladder.masses has " + std::to_string(count) + " entries but ladder.blocks is " +
+                              std::to_string(l.blocks);
+  // Blame whichever of the two the user just changed on the command line.
+  if (r.overridden("ladder.blocks") && !r.overridden("ladder.masses"))
+    r.site("ladder.blocks").fail(*r.find("ladder.blocks"), message);
+  s.fail(*masses, message);
+}
+
+void read_ladder(const Reader& r, model::LadderSpec& l) {
+  using model::Start;
+  using model::Top;
+  read_blocks(r, l);
+  r.get("ladder.length", l.length);
+  r.get("ladder.thickness", l.thickness);
+  r.get("ladder.mass", l.mass);
+  r.get("ladder.top", l.top, std::array{Top::Held, Top::Pinned, Top::Free});
+  r.get("ladder.start", l.start, std::array{Start::Hanging, Start::Straight});
+  r.get("ladder.logic", l.logic);
+  r.get("ladder.flip_impact", l.flip_impact, std::array{model::FlipImpact::Face, model::FlipImpact::Corner});
+  r.get("ladder.hinge_inset", l.hinge_inset);
+  r.get("ladder.tip_duration", l.tip_duration);
+  r.get("ladder.unlock_threshold", l.unlock_threshold);
+  r.get("ladder.capture_distance", l.capture_distance);
+  r.get("initial.kick_omega", l.kick_omega);
+  r.get("initial.tilt", l.tilt);
+}
+
+void read_options(const Reader& r, Scene& s) {
+  core::Options& o = s.options;
+  r.get("sim.dt", s.dt);
+  r.get("sim.integrator", o.integrator, &core::integrator_from_string);
+  r.get("sim.gravity", o.gravity);
+  r.get("solver.kind", o.solver, &core::solver_from_string);
+  r.get("solver.tolerance", o.tolerance);
+  r.get("solver.max_iterations", o.max_iterations);
+  r.get("damping.linear", o.linear_damping);
+  r.get("damping.angular", o.angular_damping);
+  r.get("damping.hinge", o.hinge_friction);
+}
+
+const CommandDef& command_def(std::string_view name) {
+  for (const CommandDef& c : kCommands)
+    if (c.name == name) return c;
+  throw std::logic_error("scene: no command " + std::string(name));
+}
+
+// Refuses fields the command does not take, and requires the ones it needs.
+void check_fields(const toml::table& e, const Site& s, const CommandDef& def) {
+  for (auto&& [k, v] : e) {
+    const std::string_view f = k.str();
+    if (f == "t" || f == "command" || contains_word(def.required, f) || contains_word(def.optional, f)) continue;
+    s.fail(k.source().begin, s.name + "." + std::string(f) + " does not apply to command '" + std::string(def.name) +
+                                 "'");
+  }
+  for (std::string_view f : split(def.required, ' '))
+    if (!e.contains(f)) s.fail(e, s.name + ": command '" + std::string(def.name) + "' needs '" + std::string(f) + "'");
+}
+
+TimedCommand read_entry(const toml::table& e, const Site& s, int blocks) {
+  TimedCommand c;
+  c.where = position(s.source, e.source().begin);
+  const toml::node* command = e.get("command");
+  if (!command) s.fail(e, s.name + " needs a command (tip, poke, push, break or join)");
+  const std::string_view choices = key_def("timeline.command").choices;
+  c.command = std::string(split(choices, '|').at(to_choice(*command, s.field("command"), choices)));
+  const toml::node* t = e.get("t");
+  if (!t) s.fail(e, s.name + " needs a time t [s]");
+  c.t = to_number(*t, s.field("t"), key_def("timeline.t").range);
+  check_fields(e, s, command_def(c.command));
+
+  const Range index{0, static_cast<double>(blocks), false, true};  // blocks and hinges are both 0 .. blocks-1
+  if (const toml::node* n = e.get("block")) c.block = to_int(*n, s.field("block"), index);
+  if (const toml::node* n = e.get("hinge")) c.hinge = to_int(*n, s.field("hinge"), index);
+  if (const toml::node* n = e.get("impulse")) c.impulse = to_vec2(*n, s.field("impulse"));
+  if (const toml::node* n = e.get("force")) c.force = to_vec2(*n, s.field("force"));
+  if (const toml::node* n = e.get("duration"))
+    c.duration = to_number(*n, s.field("duration"), key_def("timeline.duration").range);
+  if (const toml::node* n = e.get("at")) {
+    c.at = to_vec2(*n, s.field("at"));
+    c.has_at = true;
+  }
+  return c;
+}
+
+std::vector<TimedCommand> read_timeline(const toml::table& root, std::string_view source, int blocks) {
+  std::vector<TimedCommand> out;
+  const auto* entries = root.get_as<toml::array>("timeline");  // its shape was checked by check_structure
+  if (!entries) return out;
+  for (size_t i = 0; i < entries->size(); ++i) {
+    const Site s{source, {}, "timeline[" + std::to_string(i) + "]"};
+    out.push_back(read_entry(*entries->get_as<toml::table>(i), s, blocks));
+  }
+  std::stable_sort(out.begin(), out.end(), [](const TimedCommand& a, const TimedCommand& b) { return a.t < b.t; });
+  return out;
+}
+
+toml::table parse_document(std::string_view text, const std::string& source) {
+  try {
+    return toml::parse(text, std::string_view(source));
+  } catch (const toml::parse_error& e) {
+    throw SceneError(position(source, e.source().begin) + ": " + std::string(e.description()));
+  }
+}
+
+std::string read_file(const std::string& path) {
+  const auto fail = [&](const std::string& reason) -> void {
+    throw SceneError(path + ": cannot open scene file (" + reason + ")");
+  };
+  std::error_code ec;
+  // An ifstream opens a directory without complaint and then reads nothing.
+  if (std::filesystem::is_directory(path, ec)) fail("it is a directory");
+  errno = 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(errno != 0 ? std::generic_category().message(errno) : "unknown error");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) fail("read error");
+  return text.str();
+}
+
+std::string pad(std::string_view s, size_t width) {
+  std::string out(s);
+  out.resize(std::max(width, s.size()), ' ');
+  return out;
+}
+
+std::string type_name(const KeyDef& k) {
+  switch (k.kind) {
+    case Kind::Integer: return "int";
+    case Kind::Number: return "number";
+    case Kind::Boolean: return "bool";
+    case Kind::String: return "string";
+    case Kind::Choice: return std::string(k.choices);
+    case Kind::Pair: return "[x, y]";
+    case Kind::Numbers: return "[number, ...]";
+  }
+  return "?";
+}
+
+}  // namespace
+
+Scene parse_scene(std::string_view toml_text, const std::string& source_name,
+                  const std::vector<std::string>& overrides) {
+  toml::table root = parse_document(toml_text, source_name);
+  check_structure(root, source_name);
+  const Origins origins = apply_overrides(root, overrides);
+  const Reader r(root, source_name, origins);
+  Scene s;
+  s.source = source_name;
+  r.get("scene.name", s.name);
+  r.get("scene.description", s.description);
+  read_ladder(r, s.ladder);
+  read_options(r, s);
+  s.timeline = read_timeline(root, source_name, s.ladder.blocks);
+  return s;
+}
+
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  return parse_scene(read_file(path), path, overrides);
+}
+
+std::string keys_help() {
+  size_t name_width = 0, type_width = 0;
+  for (const KeyDef& k : kKeys) {
+    name_width = std::max(name_width, k.name.size());
+    type_width = std::max(type_width, type_name(k).size());
+  }
+  std::string out;
+  for (const KeyDef& k : kKeys) {
+    const std::string range = k.range_text.empty() ? describe(k.range) : std::string(k.range_text);
+    out += pad(k.name, name_width) + "  " + pad(type_name(k), type_width) + "  " + std::string(k.help);
+    if (!range.empty()) out += " (" + range + ")";
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace ladder::scene

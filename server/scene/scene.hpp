@@ -1,0 +1,55 @@
+// Scene files: a TOML description of a ladder, the engine options and a scripted timeline of interventions.
+//
+// Every key is optional and checked before anything is built: unknown keys (with a did-you-mean hint), wrong
+// types, values out of range and non-finite numbers are all refused with the position of the offending value,
+// so that a typo in a scene cannot silently fall back to a default. docs/scenes.md lists every key.
+// Command-line overrides (`--set table.key=value`) are merged into the file before the checks, so they are held
+// to exactly the same rules.
+#pragma once
+
+#include "ladder/ladder.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace ladder::scene {
+
+struct TimedCommand {
+  double t = 0;                // [s] sim time at which it is applied
+  std::string command;         // "tip" | "poke" | "push" | "break" | "join"
+  int block = -1;              // poke, push
+  int hinge = -1;              // break, join
+  core::Vec2 impulse{0, 0};    // poke [N s]
+  core::Vec2 at{0, 0};         // poke: world point [m]; push: point in the block's frame [m]
+  bool has_at = false;         // false: the block's centre (resolved by the caller)
+  core::Vec2 force{0, 0};      // push [N]
+  double duration = 0;         // push [s]
+  std::string where;           // "file:line:column" of the entry, for messages
+};
+
+struct Scene {
+  std::string name, description, source;  // source: the file path (or the name given to parse_scene)
+  model::LadderSpec ladder;
+  core::Options options;
+  double dt = 0.001;                       // [s]
+  std::vector<TimedCommand> timeline;      // sorted by t; entries with equal t keep their file order
+};
+
+// what() is "FILE:LINE:COLUMN: message", "--set KEY=VALUE: message" for an override, or
+// "FILE: cannot open scene file (reason)".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Each override is "table.key=value"; value is read as a TOML value, or as a bare string when it is not one.
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+Scene parse_scene(std::string_view toml_text, const std::string& source_name,
+                  const std::vector<std::string>& overrides = {});
+
+// One line per key, "key  type  description (range)", for --help.
+std::string keys_help();
+
+}  // namespace ladder::scene

@@ -1,0 +1,45 @@
+#include "scene/simulation.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <utility>
+
+namespace ladder::scene {
+
+Simulation::Simulation(const Scene& scene) : scene_(scene), ladder_(scene.ladder, scene.options), dt_(scene.dt) {}
+
+void Simulation::apply(const TimedCommand& c) {
+  model::Ladder& l = ladder_;
+  if (c.command == "tip") {
+    l.tip();
+  } else if (c.command == "poke") {
+    const core::Vec2 at = c.has_at ? c.at : l.block_centre(c.block);
+    l.poke(c.block, at, c.impulse);
+  } else if (c.command == "push") {
+    l.push(c.block, c.has_at ? c.at : core::Vec2::Zero(), c.force, c.duration);
+  } else if (c.command == "break") {
+    l.break_hinge(c.hinge);
+  } else if (c.command == "join") {
+    l.join_hinge(c.hinge);
+  } else {
+    throw std::invalid_argument("unknown command '" + c.command + "'");
+  }
+}
+
+void Simulation::step() {
+  // A command is due when its time is reached by the start of this step (half a step of slack for rounding).
+  const auto& timeline = scene_.timeline;
+  while (next_ < timeline.size() && timeline[next_].t <= time() + 0.5 * dt_) {
+    const TimedCommand& c = timeline[next_++];
+    try {
+      apply(c);
+    } catch (const std::invalid_argument& e) {
+      refusals_.push_back({time(), c.where, e.what()});
+    }
+  }
+  ladder_.advance(dt_);
+  ++steps_;
+  max_hinge_error_ = std::max(max_hinge_error_, ladder_.world().last_step().residual);
+}
+
+}  // namespace ladder::scene

@@ -1,0 +1,51 @@
+// A running scene: the ladder, its fixed time step and its scripted timeline. The one simulation path shared by
+// the offline runner and the real-time server: both call step() and apply().
+#pragma once
+
+#include "scene/scene.hpp"
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ladder::scene {
+
+// A timeline command that could not be applied when its time came (the reason is the ladder's refusal).
+struct Refusal {
+  double t = 0;
+  std::string where;   // file:line:column of the timeline entry
+  std::string reason;
+};
+
+class Simulation {
+ public:
+  explicit Simulation(const Scene& scene);
+
+  // Advances one time step, first applying every timeline command due by the start of the step.
+  void step();
+  // Applies a command now. Throws std::invalid_argument with the reason when it cannot be done; then nothing changed.
+  void apply(const TimedCommand& command);
+
+  double time() const { return ladder_.time(); }
+  double dt() const { return dt_; }
+  std::uint64_t steps() const { return steps_; }
+  const Scene& scene() const { return scene_; }
+  model::Ladder& ladder() { return ladder_; }
+  const model::Ladder& ladder() const { return ladder_; }
+  std::vector<model::Event> take_events() { return ladder_.take_events(); }
+  std::vector<Refusal> take_refusals() { return std::exchange(refusals_, {}); }
+  // Largest hinge position error at the end of any step so far [m] (the solver's own measure, free to keep).
+  double max_hinge_error() const { return max_hinge_error_; }
+
+ private:
+  Scene scene_;
+  model::Ladder ladder_;
+  double dt_;
+  std::size_t next_ = 0;  // next timeline entry
+  std::uint64_t steps_ = 0;
+  double max_hinge_error_ = 0;
+  std::vector<Refusal> refusals_;
+};
+
+}  // namespace ladder::scene

@@ -1,0 +1,193 @@
+// The toy's behaviour on the shipped scenes (paper section 6; DESIGN.md section 4): the ripple, the two-ripple
+// cancellation, locks and unlocks, the free chain against closed-form physics, and the refusals.
+#include "scene/simulation.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <set>
+#include <sstream>
+#include <string>
+
+namespace ladder {
+namespace {
+
+using model::EventKind;
+
+scene::Scene shipped(const std::string& name, const std::vector<std::string>& overrides = {}) {
+  return scene::load_scene(std::string(LADDER_SOURCE_DIR) + "/config/scenes/" + name, overrides);
+}
+
+struct Record {
+  std::map<int, int> flips;          // hinge -> number of flip-flops
+  std::map<int, double> first_flip;  // hinge -> time of its first flip-flop
+  std::map<EventKind, int> counts;
+  double worst_removed = 0;          // most negative energy_removed seen (must not be below rounding)
+};
+
+Record run(scene::Simulation& sim, double until) {
+  Record r;
+  while (sim.time() < until) {
+    sim.step();
+    for (const model::Event& e : sim.take_events()) {
+      ++r.counts[e.kind];
+      r.worst_removed = std::min(r.worst_removed, e.energy_removed);
+      if (e.kind != EventKind::FlipFlop) continue;
+      if (r.flips[e.hinge]++ == 0) r.first_flip[e.hinge] = e.t;
+    }
+    EXPECT_TRUE(sim.take_refusals().empty());
+  }
+  return r;
+}
+
+// classic.toml: the held top block is tipped once at 0.5 s. The ripple reaches hinges 1..5 in order; after a minute
+// the ladder is at rest with every block turned over (its lengthwise vector reversed, to within the ~0.2 rad
+// lean that corner hinges give a hanging block); hinges stay together to 1e-9 m; locks and unlocks happen.
+TEST(Classic, RippleRunsDownAndEveryBlockEndsReversed) {
+  scene::Simulation sim(shipped("classic.toml"));
+  const int n = sim.ladder().blocks();
+  ASSERT_EQ(n, 6);
+  std::vector<core::Vec2> initial;
+  for (int i = 0; i < n; ++i) initial.push_back(sim.ladder().lengthwise(i));
+  const Record r = run(sim, 60.0);
+  ASSERT_EQ(r.first_flip.size(), 5u) << "hinges that flipped: " << r.first_flip.size();
+  for (int k = 2; k < n; ++k) EXPECT_GT(r.first_flip.at(k), r.first_flip.at(k - 1)) << "hinge " << k;
+  EXPECT_GT(r.first_flip.at(1), 0.5);  // not before the tip
+  for (int i = 0; i < n; ++i) EXPECT_LT(sim.ladder().lengthwise(i).dot(initial[i]), -0.9) << "block " << i;
+  EXPECT_LT(sim.ladder().world().kinetic_energy(), 1e-5);  // at rest: < 0.1 % of one block's m g L
+  EXPECT_TRUE(sim.ladder().world().finite());
+  EXPECT_LT(sim.max_hinge_error(), 1e-9);
+  EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9);
+  EXPECT_GT(r.counts.count(EventKind::Lock) ? r.counts.at(EventKind::Lock) : 0, 0);
+  EXPECT_GT(r.counts.count(EventKind::Unlock) ? r.counts.at(EventKind::Unlock) : 0, 0);
+  EXPECT_EQ(r.counts.count(EventKind::SolverWarning), 0u);
+  EXPECT_GE(r.worst_removed, -1e-12);  // a restructure never adds energy
+}
+
+// double-ripple.toml: the second tip starts the moment the first ends. Compared with the same ladder tipped once
+// (where every hinge flips), the two ripples meet and cancel: the hinges above the meeting point flip and flip
+// back (an even count), and a run of hinges below it never flips at all.
+TEST(DoubleRipple, TheRipplesMeetAndCancel) {
+  scene::Scene twice = shipped("double-ripple.toml");
+  ASSERT_EQ(twice.timeline.size(), 2u);
+  scene::Scene once = twice;
+  once.timeline.pop_back();
+  scene::Simulation single(once), both(twice);
+  const Record r1 = run(single, 20.0), r2 = run(both, 20.0);
+  const int n = twice.ladder.blocks;
+  std::set<int> never;
+  for (int k = 1; k < n; ++k) {
+    EXPECT_GT(r1.flips.count(k) ? r1.flips.at(k) : 0, 0) << "single ripple did not reach hinge " << k;
+    if (!r2.flips.count(k)) never.insert(k);
+  }
+  std::ostringstream list;
+  for (int k : never) list << ' ' << k;
+  const std::string which = list.str();
+  RecordProperty("never_flipped", which);
+  std::cout << "hinges that never flip-flop with two ripples:" << which << "\n";
+  ASSERT_GE(never.size(), 5u) << which;
+  const int meeting = *never.begin();
+  EXPECT_GT(meeting, 1);  // the first ripple got some way down before it was caught
+  for (int k = 1; k < meeting; ++k) EXPECT_EQ(r2.flips.at(k) % 2, 0) << "hinge " << k << " above the meeting point";
+  for (int k = meeting; k <= *never.rbegin(); ++k) EXPECT_TRUE(never.count(k)) << "gap in the cancelled run at " << k;
+}
+
+// free-chain.toml with one block, swinging 0.01 rad about its equilibrium (centre of mass below the pivot): the
+// compound pendulum period 2 pi sqrt(I_P / (m g d)) (1 + a^2/16) to 0.1 %.
+TEST(FreeChain, SingleBlockHasTheCompoundPendulumPeriod) {
+  const double L = 0.06, W = 0.01, m = 0.02, g = 9.81, amp = 0.01;
+  const double eq = -std::atan2(W, L);
+  scene::Simulation sim(shipped("free-chain.toml", {"ladder.blocks=1", "initial.kick_omega=0",
+                                                    "initial.tilt=" + std::to_string(eq + amp)}));
+  const double d = 0.5 * std::hypot(L, W), ip = m * (L * L + W * W) / 12 + m * d * d;
+  const double expected = 2 * std::numbers::pi * std::sqrt(ip / (m * g * d)) * (1 + amp * amp / 16);
+  std::vector<double> up;
+  double prev = sim.ladder().block_angle(0) - eq;
+  while (up.size() < 11 && sim.time() < 10) {
+    sim.step();
+    const double now = sim.ladder().block_angle(0) - eq;
+    if (prev < 0 && now >= 0) up.push_back(sim.time() - sim.dt() * now / (now - prev));
+    prev = now;
+  }
+  ASSERT_EQ(up.size(), 11u);
+  EXPECT_NEAR((up.back() - up.front()) / 10 / expected, 1.0, 1e-3);
+}
+
+// free-chain.toml as shipped (two blocks, a 5 rad/s kick, no damping, no restructuring): the symplectic default
+// keeps the energy error bounded (1 % of the largest kinetic energy) with no drift between the first and last two
+// seconds of a 30 s run, and the hinges together to 1e-9 m.
+TEST(FreeChain, EnergyBoundedWithoutDrift) {
+  scene::Simulation sim(shipped("free-chain.toml"));
+  const double e0 = sim.ladder().energy();
+  double worst = 0, scale = 0, first = 0, last = 0;
+  int nf = 0, nl = 0;
+  while (sim.time() < 30) {
+    sim.step();
+    const double e = sim.ladder().energy() - e0;
+    scale = std::max(scale, sim.ladder().world().kinetic_energy());
+    worst = std::max(worst, std::abs(e));
+    if (sim.time() < 2) first += e, ++nf;
+    if (sim.time() > 28) last += e, ++nl;
+  }
+  EXPECT_LT(worst / scale, 3e-2);
+  EXPECT_LT(std::abs(last / nl - first / nf) / scale, 3e-3);
+  EXPECT_LT(sim.max_hinge_error(), 1e-9);
+  EXPECT_TRUE(sim.take_events().empty());  // logic off: no restructuring
+}
+
+// A ladder in free fall with no gravity, kicked so that its hinges fold, flip and lock: every impulse is internal,
+// so the total linear momentum is kept through all the events (to rounding).
+TEST(FreeLadder, RestructuringKeepsLinearMomentum) {
+  scene::Scene sc = shipped("classic.toml", {"ladder.top=\"free\"", "ladder.start=\"straight\"",
+                                             "sim.gravity=[0.0, 0.0]", "damping.linear=0", "damping.angular=0",
+                                             "initial.kick_omega=40"});
+  sc.timeline.clear();  // nothing holds the top block, so there is nothing to tip
+  scene::Simulation sim(sc);
+  std::vector<int> all;
+  for (int i = 0; i < sim.ladder().blocks(); ++i) all.push_back(i);
+  const core::Vec2 p0 = sim.ladder().world().linear_momentum(all);
+  const Record r = run(sim, 2.0);
+  EXPECT_GT(r.counts.size(), 0u) << "no restructuring happened: the test would prove nothing";
+  const core::Vec2 p1 = sim.ladder().world().linear_momentum(all);
+  EXPECT_LT((p1 - p0).norm(), 1e-12 * std::max(p0.norm(), 1e-3));
+}
+
+TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
+  scene::Simulation sim(shipped("classic.toml"));
+  model::Ladder& l = sim.ladder();
+  const auto expect_refused = [&](auto&& op, const std::string& words) {
+    const auto before = l.world().save();
+    try {
+      op();
+      FAIL() << "accepted; expected a refusal mentioning '" << words << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+    const auto after = l.world().save();
+    ASSERT_EQ(before.bodies.size(), after.bodies.size());
+    for (size_t b = 0; b < before.bodies.size(); ++b) EXPECT_EQ(before.bodies[b].x, after.bodies[b].x);
+  };
+  expect_refused([&] { l.poke(7, {0, 0}, {0.01, 0}); }, "no block 7");
+  expect_refused([&] { l.poke(0, {0, 0}, {0.01, 0}); }, "held");
+  expect_refused([&] { l.poke(2, {0, 0}, {std::nan(""), 0}); }, "finite");
+  expect_refused([&] { l.break_hinge(9); }, "no hinge 9");
+  expect_refused([&] { l.join_hinge(2); }, "not broken");
+  expect_refused([&] { l.push(1, {0, 0}, {1, 0}, -1); }, "duration");
+  l.tip();
+  expect_refused([&] { l.tip(); }, "already in progress");
+  l.break_hinge(3);
+  expect_refused([&] { l.break_hinge(3); }, "already broken");
+  for (int i = 0; i < 2000; ++i) sim.step();  // the lower blocks fall away
+  expect_refused([&] { l.join_hinge(3); }, "capture distance");
+}
+
+// Pinned, not held: the top block cannot be tipped by a hand.
+TEST(Interventions, TipNeedsAHeldTopBlock) {
+  scene::Simulation sim(shipped("free-chain.toml"));
+  EXPECT_THROW(sim.ladder().tip(), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace ladder

@@ -1,0 +1,538 @@
+#include "scene/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace ladder::scene {
+namespace {
+
+const std::string kSource = LADDER_SOURCE_DIR;
+
+std::string scene_path(const std::string& name) { return kSource + "/config/scenes/" + name + ".toml"; }
+
+// The message of the SceneError that parsing `text` (with `overrides`) throws, or "" when it does not throw.
+std::string error_of(const std::string& text, const std::vector<std::string>& overrides = {}) {
+  try {
+    parse_scene(text, "<string>", overrides);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Checks the message starts with `prefix` (the position) and contains every one of `parts`.
+void expect_error(const std::string& text, const std::string& prefix, const std::vector<std::string>& parts,
+                  const std::vector<std::string>& overrides = {}) {
+  const std::string message = error_of(text, overrides);
+  ASSERT_FALSE(message.empty()) << "no error for:\n" << text;
+  EXPECT_EQ(message.substr(0, prefix.size()), prefix) << message;
+  for (const std::string& p : parts) EXPECT_NE(message.find(p), std::string::npos) << "'" << p << "' not in: " << message;
+}
+
+// ------------------------------------------------------------------------------------------- shipped scenes
+
+TEST(ShippedScenes, ClassicHasTheDocumentedValues) {
+  const Scene s = load_scene(scene_path("classic"));
+  EXPECT_EQ(s.source, scene_path("classic"));
+  EXPECT_FALSE(s.name.empty());
+  EXPECT_FALSE(s.description.empty());
+  EXPECT_EQ(s.ladder.blocks, 6);
+  EXPECT_DOUBLE_EQ(s.ladder.length, 0.064);
+  EXPECT_DOUBLE_EQ(s.ladder.thickness, 0.013);
+  EXPECT_DOUBLE_EQ(s.ladder.mass, 0.025);
+  EXPECT_TRUE(s.ladder.masses.empty());
+  EXPECT_EQ(s.ladder.top, model::Top::Held);
+  EXPECT_EQ(s.ladder.start, model::Start::Hanging);
+  EXPECT_TRUE(s.ladder.logic);
+  EXPECT_DOUBLE_EQ(s.ladder.tip_duration, 0.4);
+  EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
+  EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
+  EXPECT_DOUBLE_EQ(s.dt, 0.001);
+  EXPECT_EQ(s.options.integrator, core::Integrator::SymplecticEuler);
+  EXPECT_EQ(s.options.solver, core::SolverKind::Newton);
+  EXPECT_DOUBLE_EQ(s.options.tolerance, 1e-12);
+  ASSERT_EQ(s.timeline.size(), 1u);
+  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
+  EXPECT_EQ(s.timeline[0].where.rfind(scene_path("classic") + ":", 0), 0u) << s.timeline[0].where;
+}
+
+TEST(ShippedScenes, DoubleRippleTipsTwice) {
+  const Scene s = load_scene(scene_path("double-ripple"));
+  EXPECT_EQ(s.ladder.blocks, 16);
+  EXPECT_DOUBLE_EQ(s.ladder.length, 0.064);
+  EXPECT_DOUBLE_EQ(s.ladder.thickness, 0.013);
+  EXPECT_DOUBLE_EQ(s.ladder.mass, 0.025);
+  EXPECT_DOUBLE_EQ(s.ladder.hinge_inset, 0.4);
+  EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
+  EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
+  ASSERT_EQ(s.timeline.size(), 2u);
+  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
+  EXPECT_EQ(s.timeline[1].command, "tip");
+  EXPECT_DOUBLE_EQ(s.timeline[1].t, 1.0);
+  // The tip back starts after the first tip has finished.
+  EXPECT_GE(s.timeline[1].t, s.timeline[0].t + s.ladder.tip_duration);
+}
+
+TEST(ShippedScenes, LongHasAThousandBlocks) {
+  const Scene s = load_scene(scene_path("long"));
+  EXPECT_EQ(s.ladder.blocks, 1000);
+  EXPECT_DOUBLE_EQ(s.ladder.length, 0.064);
+  EXPECT_DOUBLE_EQ(s.ladder.hinge_inset, 0.4);
+  EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
+  EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
+  ASSERT_EQ(s.timeline.size(), 1u);
+  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
+}
+
+TEST(ShippedScenes, FreeChainIsTheComparisonSetup) {
+  const Scene s = load_scene(scene_path("free-chain"));
+  EXPECT_EQ(s.ladder.blocks, 2);
+  EXPECT_DOUBLE_EQ(s.ladder.length, 0.06);
+  EXPECT_DOUBLE_EQ(s.ladder.thickness, 0.01);
+  EXPECT_DOUBLE_EQ(s.ladder.mass, 0.02);
+  EXPECT_EQ(s.ladder.top, model::Top::Pinned);
+  EXPECT_EQ(s.ladder.start, model::Start::Straight);
+  EXPECT_FALSE(s.ladder.logic);
+  EXPECT_DOUBLE_EQ(s.ladder.kick_omega, 5.0);
+  EXPECT_DOUBLE_EQ(s.ladder.tilt, 0.0);
+  EXPECT_DOUBLE_EQ(s.dt, 0.001);
+  EXPECT_EQ(s.options.gravity, core::Vec2(0, -9.81));
+  EXPECT_EQ(s.options.linear_damping, 0.0);
+  EXPECT_EQ(s.options.angular_damping, 0.0);
+  EXPECT_EQ(s.options.hinge_friction, 0.0);
+  EXPECT_TRUE(s.timeline.empty());
+}
+
+// The geometry the free-chain description promises, as the model builds it.
+TEST(ShippedScenes, FreeChainStartsAsDescribed) {
+  const Scene s = load_scene(scene_path("free-chain"));
+  const model::Ladder ladder(s.ladder, s.options);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(ladder.block_centre(i).x(), 0.005, 1e-15) << i;
+    EXPECT_NEAR(ladder.block_centre(i).y(), -0.03 - 0.06 * i, 1e-15) << i;
+  }
+  EXPECT_DOUBLE_EQ(ladder.world().part_omega(0), 0.0);
+  EXPECT_DOUBLE_EQ(ladder.world().part_omega(1), 5.0);
+}
+
+TEST(ShippedScenes, EveryOneBuildsALadder) {
+  for (const char* name : {"classic", "double-ripple", "long", "free-chain"}) {
+    SCOPED_TRACE(name);
+    const Scene s = load_scene(scene_path(name));
+    EXPECT_NO_THROW(model::Ladder(s.ladder, s.options));
+  }
+}
+
+// ------------------------------------------------------------------------------------------- values
+
+TEST(Values, EmptySceneKeepsTheDefaults) {
+  const Scene s = parse_scene("", "<string>");
+  const model::LadderSpec l;
+  const core::Options o;
+  EXPECT_EQ(s.source, "<string>");
+  EXPECT_EQ(s.ladder.blocks, l.blocks);
+  EXPECT_EQ(s.ladder.length, l.length);
+  EXPECT_EQ(s.ladder.tip_duration, l.tip_duration);
+  EXPECT_EQ(s.ladder.hinge_inset, l.hinge_inset);
+  EXPECT_EQ(s.options.integrator, o.integrator);
+  EXPECT_EQ(s.options.tolerance, o.tolerance);
+  EXPECT_EQ(s.options.max_iterations, o.max_iterations);
+  EXPECT_EQ(s.options.gravity, o.gravity);
+  EXPECT_EQ(s.dt, 0.001);
+  EXPECT_TRUE(s.timeline.empty());
+}
+
+TEST(Values, EveryKeyIsRead) {
+  const Scene s = parse_scene(R"(
+[scene]
+name = "n"
+description = "d"
+[ladder]
+masses = [1, 2.5, 3]
+length = 2
+thickness = 0.5
+mass = 7
+top = "free"
+start = "straight"
+logic = false
+hinge_inset = 0.25
+tip_duration = 1.5
+unlock_threshold = 0
+capture_distance = 0.01
+[initial]
+kick_omega = -2
+tilt = 0.1
+[sim]
+dt = 1e-4
+integrator = "rattle"
+gravity = [1, -2]
+[solver]
+kind = "newton_linesearch"
+tolerance = 1e-9
+max_iterations = 50
+[damping]
+linear = 0.5
+angular = 0.25
+hinge = 0.125
+)",
+                              "<string>");
+  EXPECT_EQ(s.name, "n");
+  EXPECT_EQ(s.description, "d");
+  EXPECT_EQ(s.ladder.blocks, 3);  // from masses
+  EXPECT_EQ(s.ladder.masses, (std::vector<double>{1, 2.5, 3}));
+  EXPECT_EQ(s.ladder.length, 2.0);
+  EXPECT_EQ(s.ladder.thickness, 0.5);
+  EXPECT_EQ(s.ladder.mass, 7.0);
+  EXPECT_EQ(s.ladder.top, model::Top::Free);
+  EXPECT_EQ(s.ladder.start, model::Start::Straight);
+  EXPECT_FALSE(s.ladder.logic);
+  EXPECT_EQ(s.ladder.hinge_inset, 0.25);
+  EXPECT_EQ(s.ladder.tip_duration, 1.5);
+  EXPECT_EQ(s.ladder.unlock_threshold, 0.0);
+  EXPECT_EQ(s.ladder.capture_distance, 0.01);
+  EXPECT_EQ(s.ladder.kick_omega, -2.0);
+  EXPECT_EQ(s.ladder.tilt, 0.1);
+  EXPECT_EQ(s.dt, 1e-4);
+  EXPECT_EQ(s.options.integrator, core::Integrator::Rattle);
+  EXPECT_EQ(s.options.gravity, core::Vec2(1, -2));
+  EXPECT_EQ(s.options.solver, core::SolverKind::NewtonLineSearch);
+  EXPECT_EQ(s.options.tolerance, 1e-9);
+  EXPECT_EQ(s.options.max_iterations, 50);
+  EXPECT_EQ(s.options.linear_damping, 0.5);
+  EXPECT_EQ(s.options.angular_damping, 0.25);
+  EXPECT_EQ(s.options.hinge_friction, 0.125);
+}
+
+TEST(Values, TimelineIsReadAndSortedStably) {
+  const Scene s = parse_scene(R"([ladder]
+blocks = 4
+[[timeline]]
+t = 2
+command = "push"
+block = 3
+force = [0.5, 0]
+duration = 0.25
+at = [0, 0.01]
+[[timeline]]
+t = 1
+command = "break"
+hinge = 2
+[[timeline]]
+t = 1
+command = "poke"
+block = 1
+impulse = [0, 1e-3]
+[[timeline]]
+t = 0.5
+command = "join"
+hinge = 0
+)",
+                              "<string>");
+  ASSERT_EQ(s.timeline.size(), 4u);
+  const auto& j = s.timeline[0];
+  EXPECT_EQ(j.command, "join");
+  EXPECT_EQ(j.hinge, 0);
+  EXPECT_EQ(j.where, "<string>:19:1");
+  const auto& b = s.timeline[1];  // equal t: file order kept
+  EXPECT_EQ(b.command, "break");
+  EXPECT_EQ(b.hinge, 2);
+  EXPECT_EQ(b.block, -1);
+  EXPECT_EQ(b.where, "<string>:10:1");
+  const auto& p = s.timeline[2];
+  EXPECT_EQ(p.command, "poke");
+  EXPECT_EQ(p.block, 1);
+  EXPECT_EQ(p.impulse, core::Vec2(0, 1e-3));
+  EXPECT_FALSE(p.has_at);
+  const auto& u = s.timeline[3];
+  EXPECT_EQ(u.command, "push");
+  EXPECT_EQ(u.t, 2.0);
+  EXPECT_EQ(u.block, 3);
+  EXPECT_EQ(u.force, core::Vec2(0.5, 0));
+  EXPECT_EQ(u.duration, 0.25);
+  EXPECT_TRUE(u.has_at);
+  EXPECT_EQ(u.at, core::Vec2(0, 0.01));
+  EXPECT_EQ(u.where, "<string>:3:1");
+}
+
+TEST(Values, InlineTimelineTablesWork) {
+  const Scene s = parse_scene("timeline = [{ t = 0.5, command = \"tip\" }]\n", "<string>");
+  ASSERT_EQ(s.timeline.size(), 1u);
+  EXPECT_EQ(s.timeline[0].where, "<string>:1:13");
+}
+
+TEST(Values, IntegersAreAcceptedAsNumbers) {
+  const Scene s = parse_scene("[sim]\ngravity = [0, -10]\n[ladder]\nlength = 1\n", "<string>");
+  EXPECT_EQ(s.options.gravity, core::Vec2(0, -10));
+  EXPECT_EQ(s.ladder.length, 1.0);
+}
+
+// ------------------------------------------------------------------------------------------- errors
+
+TEST(Errors, SyntaxErrorReportsTomlsPosition) {
+  expect_error("[ladder]\nblocks = = 3\n", "<string>:2:10: ", {"could not determine value type"});
+  expect_error("[sim]\ndt = 0.001\n[sim]\n", "<string>:3:1: ", {"sim"});
+}
+
+TEST(Errors, UnknownKeySuggestsTheNearestOne) {
+  expect_error("[ladder]\nblocks = 6\nblokcs = 6\n", "<string>:3:1: ",
+               {"unknown key 'ladder.blokcs'", "(did you mean 'ladder.blocks'?)"});
+  expect_error("[sim]\n  integrater = \"rk4\"\n", "<string>:2:3: ", {"(did you mean 'sim.integrator'?)"});
+}
+
+TEST(Errors, UnknownKeyWithNothingNearHasNoHint) {
+  const std::string m = error_of("[damping]\nwobble = 1\n");
+  EXPECT_EQ(m, "<string>:2:1: unknown key 'damping.wobble'");
+}
+
+TEST(Errors, UnknownTableSuggestsTheNearestOne) {
+  expect_error("\n[ladr]\nblocks = 6\n", "<string>:2:2: ", {"unknown table 'ladr'", "(did you mean 'ladder'?)"});
+  expect_error("blocks = 6\n", "<string>:1:1: ", {"unknown key 'blocks'", "(did you mean 'ladder.blocks'?)"});
+}
+
+TEST(Errors, TheFirstUnknownKeyInTheFileIsReported) {
+  // toml++ keeps keys sorted; the report must follow the file.
+  expect_error("[ladder]\nzzz = 1\naaa = 2\n", "<string>:2:1: ", {"ladder.zzz"});
+}
+
+TEST(Errors, KnownTableThatIsNotATable) {
+  expect_error("sim = 3\n", "<string>:1:7: ", {"sim must be a table, not an integer"});
+  expect_error("[timeline]\nt = 1\n", "<string>:1:1: ", {"timeline must be an array of tables"});
+}
+
+TEST(Errors, WrongType) {
+  expect_error("[ladder]\nblocks = \"six\"\n", "<string>:2:10: ", {"ladder.blocks must be an integer, not a string"});
+  expect_error("[ladder]\nlength = true\n", "<string>:2:10: ", {"ladder.length must be a number, not a boolean"});
+  expect_error("[ladder]\nlogic = 1\n", "<string>:2:9: ", {"ladder.logic must be a boolean"});
+  expect_error("[scene]\nname = 3\n", "<string>:2:8: ", {"scene.name must be a string, not an integer"});
+  expect_error("[ladder]\ntop = 1\n", "<string>:2:7: ", {"ladder.top must be a string"});
+}
+
+TEST(Errors, IntegerKeysRefuseFloats) {
+  expect_error("[ladder]\nblocks = 6.0\n", "<string>:2:10: ",
+               {"ladder.blocks must be an integer, not a floating-point number"});
+  expect_error("[solver]\nmax_iterations = 1.5\n", "<string>:2:18: ", {"solver.max_iterations must be an integer"});
+}
+
+TEST(Errors, OutOfRange) {
+  expect_error("[ladder]\nmass = -1\n", "<string>:2:8: ", {"ladder.mass must be > 0 (got -1)"});
+  expect_error("[ladder]\nlength = 0.0\n", "<string>:2:10: ", {"ladder.length must be > 0 (got 0)"});
+  expect_error("[ladder]\nhinge_inset = 0.5\n", "<string>:2:15: ",
+               {"ladder.hinge_inset must be >= 0 and < 0.5 (got 0.5)"});
+  expect_error("[sim]\ndt = 0.2\n", "<string>:2:6: ", {"sim.dt must be >= 1e-07 and <= 0.1 (got 0.2)"});
+  expect_error("[solver]\nmax_iterations = 1001\n", "<string>:2:18: ", {"solver.max_iterations", "(got 1001)"});
+  expect_error("[damping]\nhinge = -0.5\n", "<string>:2:9: ", {"damping.hinge must be >= 0 (got -0.5)"});
+}
+
+TEST(Errors, ZeroBlocks) {
+  expect_error("# comment\n[ladder]\nblocks = 0\n", "<string>:3:10: ", {"ladder.blocks must be >= 1", "(got 0)"});
+  expect_error("[ladder]\nblocks = 10000001\n", "<string>:2:10: ", {"<= 10000000", "(got 10000001)"});
+}
+
+TEST(Errors, NonFiniteNumbersAreRefused) {
+  expect_error("[ladder]\nlength = nan\n", "<string>:2:10: ", {"ladder.length must be finite (got nan)"});
+  expect_error("[initial]\ntilt = -inf\n", "<string>:2:8: ", {"initial.tilt must be finite (got -inf)"});
+  expect_error("[sim]\ngravity = [0, inf]\n", "<string>:2:15: ", {"sim.gravity[1] must be finite (got inf)"});
+}
+
+TEST(Errors, NegativeMass) {
+  expect_error("[ladder]\nmasses = [0.1, -0.2, 0.3]\n", "<string>:2:16: ", {"ladder.masses[1] must be > 0 (got -0.2)"});
+}
+
+TEST(Errors, MassesOfTheWrongLength) {
+  expect_error("[ladder]\nblocks = 3\nmasses = [1, 2]\n", "<string>:3:10: ",
+               {"ladder.masses has 2 entries but ladder.blocks is 3"});
+  expect_error("[ladder]\nmasses = []\n", "<string>:2:10: ", {"ladder.masses must not be empty"});
+}
+
+TEST(Errors, UnknownEnumNames) {
+  expect_error("[sim]\nintegrator = \"rk5\"\n", "<string>:2:14: ", {"sim.integrator", "unknown integrator 'rk5'"});
+  expect_error("[solver]\nkind = \"gauss\"\n", "<string>:2:8: ", {"solver.kind", "unknown solver 'gauss'"});
+  expect_error("[ladder]\ntop = \"hold\"\n", "<string>:2:7: ",
+               {"ladder.top must be held, pinned or free (got 'hold')", "did you mean 'held'"});
+}
+
+TEST(Errors, GravityNeedsTwoNumbers) {
+  expect_error("[sim]\ngravity = [0, -9.81, 0]\n", "<string>:2:11: ", {"sim.gravity must have exactly 2 elements"});
+  expect_error("[sim]\ngravity = -9.81\n", "<string>:2:11: ", {"sim.gravity must be an array of 2 numbers"});
+  expect_error("[sim]\ngravity = [0, \"down\"]\n", "<string>:2:15: ", {"sim.gravity[1] must be a number, not a string"});
+}
+
+TEST(Errors, TimelineCommandMissingAField) {
+  expect_error("[[timeline]]\nt = 1\ncommand = \"poke\"\nblock = 2\n", "<string>:1:1: ",
+               {"timeline[0]: command 'poke' needs 'impulse'"});
+  expect_error("[[timeline]]\nt = 1\ncommand = \"break\"\n", "<string>:1:1: ", {"needs 'hinge'"});
+  expect_error("\n[[timeline]]\ncommand = \"tip\"\n", "<string>:2:1: ", {"timeline[0] needs a time t"});
+  expect_error("[[timeline]]\nt = 1\n[[timeline]]\nt = 2\n", "<string>:1:1: ", {"timeline[0] needs a command"});
+}
+
+TEST(Errors, TimelineBlockOutOfRange) {
+  expect_error("[ladder]\nblocks = 6\n[[timeline]]\nt = 1\ncommand = \"poke\"\nblock = 6\nimpulse = [0, 1]\n",
+               "<string>:6:9: ", {"timeline[0].block must be >= 0 and < 6 (got 6)"});
+  expect_error("[[timeline]]\nt = 1\ncommand = \"join\"\nhinge = -1\n", "<string>:4:9: ", {"timeline[0].hinge"});
+}
+
+TEST(Errors, TimelineFieldsThatDoNotBelong) {
+  expect_error("[[timeline]]\nt = 1\ncommand = \"tip\"\nblock = 0\n", "<string>:4:1: ",
+               {"timeline[0].block does not apply to command 'tip'"});
+  expect_error("[[timeline]]\nt = 1\ncommand = \"tip\"\nblok = 0\n", "<string>:4:1: ",
+               {"unknown key 'timeline.blok'", "(did you mean 'timeline.block'?)"});
+}
+
+TEST(Errors, TimelineValues) {
+  expect_error("[[timeline]]\nt = -1\ncommand = \"tip\"\n", "<string>:2:5: ", {"timeline[0].t must be >= 0 (got -1)"});
+  expect_error("[[timeline]]\nt = 1\ncommand = \"jump\"\n", "<string>:3:11: ", {"timeline[0].command must be tip"});
+  expect_error("[[timeline]]\nt = 0\ncommand = \"push\"\nblock = 1\nforce = [1, 0]\nduration = 0\n", "<string>:6:12: ",
+               {"timeline[0].duration must be > 0 (got 0)"});
+  expect_error("[[timeline]]\nt = 0\ncommand = \"poke\"\nblock = 1\nimpulse = [1, 0]\nat = [1]\n", "<string>:6:6: ",
+               {"timeline[0].at must have exactly 2 elements"});
+  expect_error("timeline = [1]\n", "<string>:1:13: ", {"timeline[0] must be a table, not an integer"});
+}
+
+TEST(Errors, FileThatCannotBeOpened) {
+  const std::string path = kSource + "/config/scenes/no-such-scene.toml";
+  try {
+    load_scene(path);
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open scene file (No such file or directory)");
+  }
+  try {
+    load_scene(kSource + "/config/scenes");
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot open scene file (it is a directory)"), std::string::npos);
+  }
+}
+
+TEST(Errors, FileErrorsNameTheFile) {
+  const std::string path = testing::TempDir() + "scene_test_bad.toml";
+  std::ofstream(path) << "[ladder]\nmass = -1\n";
+  try {
+    load_scene(path);
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ":2:8: ladder.mass must be > 0 (got -1)");
+  }
+  std::remove(path.c_str());
+}
+
+TEST(Errors, OverrideErrorsNameTheOverride) {
+  try {
+    load_scene(scene_path("classic"), {"ladder.mass=-1"});
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), "--set ladder.mass=-1: ladder.mass must be > 0 (got -1)");
+  }
+}
+
+// ------------------------------------------------------------------------------------------- overrides
+
+TEST(Overrides, ChangeValues) {
+  const Scene s = load_scene(scene_path("classic"),
+                             {"sim.dt=0.0005", "sim.integrator=rk4", "ladder.blocks=100", "sim.gravity=[0, 9.81]",
+                              "ladder.top=\"pinned\"", "damping.hinge = 0.01", "scene.name=bare words"});
+  EXPECT_EQ(s.dt, 0.0005);
+  EXPECT_EQ(s.options.integrator, core::Integrator::RK4);
+  EXPECT_EQ(s.ladder.blocks, 100);
+  EXPECT_EQ(s.options.gravity, core::Vec2(0, 9.81));
+  EXPECT_EQ(s.ladder.top, model::Top::Pinned);
+  EXPECT_EQ(s.options.hinge_friction, 0.01);
+  EXPECT_EQ(s.name, "bare words");
+  EXPECT_EQ(s.ladder.length, 0.064);  // untouched
+}
+
+TEST(Overrides, CreateAMissingTable) {
+  const Scene s = parse_scene("", "<string>", {"solver.max_iterations=7"});
+  EXPECT_EQ(s.options.max_iterations, 7);
+}
+
+TEST(Overrides, TheLastOneWins) {
+  const Scene s = parse_scene("", "<string>", {"sim.dt=0.002", "sim.dt=0.003"});
+  EXPECT_EQ(s.dt, 0.003);
+}
+
+TEST(Overrides, AreValidatedLikeFileValues) {
+  EXPECT_EQ(error_of("", {"sim.dt=1"}), "--set sim.dt=1: sim.dt must be >= 1e-07 and <= 0.1 (got 1)");
+  EXPECT_EQ(error_of("", {"ladder.blocks=many"}), "--set ladder.blocks=many: ladder.blocks must be an integer, not a string");
+  EXPECT_EQ(error_of("", {"ladder.blocks=0"}), "--set ladder.blocks=0: ladder.blocks must be >= 1 and <= 10000000 (got 0)");
+  EXPECT_EQ(error_of("", {"ladder.length=nan"}), "--set ladder.length=nan: ladder.length must be finite (got nan)");
+  EXPECT_EQ(error_of("", {"sim.gravity=[0, x]"}),
+            "--set sim.gravity=[0, x]: sim.gravity must be an array of 2 numbers, not a string");
+  expect_error("", "--set sim.integrator=rk5: ", {"unknown integrator 'rk5'"}, {"sim.integrator=rk5"});
+}
+
+TEST(Overrides, AnErrorInTheFileIsStillReportedAtItsLine) {
+  expect_error("[sim]\ndt = 5\n", "<string>:2:6: ", {"sim.dt"}, {"ladder.blocks=3"});
+}
+
+TEST(Overrides, UnknownKeySuggestsTheNearestOne) {
+  EXPECT_EQ(error_of("", {"sim.dtt=0.001"}), "--set sim.dtt=0.001: unknown key 'sim.dtt' (did you mean 'sim.dt'?)");
+  EXPECT_EQ(error_of("", {"blocks=5"}), "--set blocks=5: unknown key 'blocks' (did you mean 'ladder.blocks'?)");
+  expect_error("", "--set timeline.t=1: ", {"unknown key 'timeline.t'"}, {"timeline.t=1"});
+  expect_error("", "--set sim.dt: ", {"expected KEY=VALUE"}, {"sim.dt"});
+}
+
+TEST(Overrides, BlocksMustMatchTheFilesMasses) {
+  const std::string file = "[ladder]\nmasses = [1, 2, 3]\n";
+  EXPECT_EQ(error_of(file, {"ladder.blocks=4"}),
+            "--set ladder.blocks=4: ladder.masses has 3 entries but ladder.blocks is 4");
+  EXPECT_EQ(parse_scene(file, "<string>", {"ladder.blocks=3"}).ladder.blocks, 3);
+  // Overriding both together is fine.
+  const Scene s = parse_scene(file, "<string>", {"ladder.blocks=2", "ladder.masses=[5, 6]"});
+  EXPECT_EQ(s.ladder.masses, (std::vector<double>{5, 6}));
+}
+
+TEST(Overrides, BlocksBoundTheTimeline) {
+  const std::string file = "[[timeline]]\nt = 1\ncommand = \"break\"\nhinge = 5\n";
+  EXPECT_NO_THROW(parse_scene(file, "<string>"));  // default 6 blocks
+  expect_error(file, "<string>:4:9: ", {"timeline[0].hinge must be >= 0 and < 5 (got 5)"}, {"ladder.blocks=5"});
+}
+
+// ------------------------------------------------------------------------------------------- help and docs
+
+std::vector<std::string> help_keys() {
+  std::vector<std::string> keys;
+  std::istringstream in(keys_help());
+  std::string line;
+  while (std::getline(in, line)) keys.push_back(line.substr(0, line.find(' ')));
+  return keys;
+}
+
+TEST(Help, OneLinePerKey) {
+  const auto keys = help_keys();
+  EXPECT_EQ(keys.size(), 33u);
+  EXPECT_EQ(keys.front(), "scene.name");
+  const std::string help = keys_help();
+  EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
+  EXPECT_NE(help.find("(>= 1 and <= 10000000)"), std::string::npos);
+  EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4"), std::string::npos);
+}
+
+TEST(Help, EveryIntegratorAndSolverItListsIsAccepted) {
+  for (const char* i : {"euler", "symplectic_euler", "rattle", "rk4"})
+    EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("sim.integrator=") + i})) << i;
+  for (const char* k : {"newton", "newton_linesearch"})
+    EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("solver.kind=") + k})) << k;
+}
+
+TEST(Help, EveryKeyIsDocumented) {
+  std::ifstream in(kSource + "/docs/scenes.md");
+  ASSERT_TRUE(in) << "docs/scenes.md";
+  std::stringstream doc;
+  doc << in.rdbuf();
+  for (const std::string& key : help_keys()) {
+    const std::string leaf = key.substr(key.find('.') + 1);
+    EXPECT_NE(doc.str().find("`" + leaf + "`"), std::string::npos) << key;
+  }
+}
+
+}  // namespace
+}  // namespace ladder::scene
