@@ -75,7 +75,7 @@ TEST(ShippedScenes, DoubleRippleTipsTwice) {
   EXPECT_EQ(s.timeline[0].command, "tip");
   EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
   EXPECT_EQ(s.timeline[1].command, "tip");
-  EXPECT_DOUBLE_EQ(s.timeline[1].t, 1.0);
+  EXPECT_DOUBLE_EQ(s.timeline[1].t, 0.9);
   // The tip back starts after the first tip has finished.
   EXPECT_GE(s.timeline[1].t, s.timeline[0].t + s.ladder.tip_duration);
 }
@@ -508,7 +508,7 @@ std::vector<std::string> help_keys() {
 
 TEST(Help, OneLinePerKey) {
   const auto keys = help_keys();
-  EXPECT_EQ(keys.size(), 33u);
+  EXPECT_EQ(keys.size(), 34u);
   EXPECT_EQ(keys.front(), "scene.name");
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
@@ -536,3 +536,15 @@ TEST(Help, EveryKeyIsDocumented) {
 
 }  // namespace
 }  // namespace ladder::scene
+
+TEST(Values, FlipImpactChoice) {
+  EXPECT_EQ(ladder::scene::parse_scene("", "<string>").ladder.flip_impact, ladder::model::FlipImpact::Face);
+  const auto s = ladder::scene::parse_scene("[ladder]\nflip_impact = \"corner\"\n", "<string>");
+  EXPECT_EQ(s.ladder.flip_impact, ladder::model::FlipImpact::Corner);
+  try {
+    ladder::scene::parse_scene("[ladder]\nflip_impact = \"edge\"\n", "<string>");
+    FAIL() << "accepted an unknown flip_impact";
+  } catch (const ladder::scene::SceneError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("<string>:2:15:", 0), 0u) << e.what();
+  }
+}
