@@ -128,7 +128,16 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
     }
     if (!paper) {
       apply_correction(mu_, ua0, ub0, velocity_scale);
-      const double next = residuals(c_);
+      double next = residuals(c_);
+      // A step that makes things worse is cut back by halves (the correction is linear in mu, so applying -mu/2
+      // undoes half of it): near heavily loaded light bodies (the top of a long hanging chain) a full Newton
+      // step can overshoot and cycle.
+      for (int cut = 0; cut < 6 && next > res; ++cut) {
+        for (Vec2& m : mu_) m *= -0.5;
+        apply_correction(mu_, ua0, ub0, velocity_scale);
+        for (Vec2& m : mu_) m = -m;
+        next = residuals(c_);
+      }
       if (next > 0.25 * res) exact = true;  // the chord is converging slowly: switch to the exact Jacobian
       res = next;
       continue;

@@ -26,7 +26,12 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
   app.set_version_flag("--version", "ladderd 0.1.0");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; every bad command line exits 2, the code scripts get for any bad input.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
 
   spdlog::set_default_logger(spdlog::stderr_color_mt("ladderd"));
   spdlog::set_level(spdlog::level::from_str(level));

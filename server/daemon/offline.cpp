@@ -117,12 +117,17 @@ int run_offline(const OfflineOptions& o) {
     }
   } catch (const std::exception& e) {
     spdlog::error("the simulation failed at t = {:.6f} s: {}", sim->time(), e.what());
+    if (out.summary)
+      *out.summary << json{{"scene", sc.name}, {"failed", true}, {"error", e.what()}, {"sim_time", sim->time()},
+                           {"steps", sim->steps()}, {"events", counts}}.dump(2)
+                   << '\n';
     return 3;
   }
   const double wall = std::chrono::duration<double>(Clock::now() - started).count();
   const double rate = stepping > 0 ? static_cast<double>(sim->steps()) * blocks / stepping : 0.0;
   const double max_error = std::max(sim->max_hinge_error(), sampled_error);
   json summary{{"scene", sc.name},
+               {"failed", false},
                {"blocks", blocks},
                {"dt", sc.dt},
                {"integrator", core::to_string(sc.options.integrator)},

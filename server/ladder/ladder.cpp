@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -80,6 +81,12 @@ Vec2 corner_local(int i, int c, double length, double half_width) {
 double side_sign(int block, int c) {
   const double chi = (c == 0 || c == 3) ? 1.0 : -1.0;
   return block % 2 == 0 ? chi : -chi;
+}
+
+std::string format_number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", x);
+  return buf;
 }
 
 void require(bool ok, const std::string& what) {
@@ -200,23 +207,29 @@ void Ladder::emit(EventKind kind, int k, double energy, std::string detail) {
 std::vector<Event> Ladder::take_events() { return std::exchange(events_, {}); }
 
 // One engine step with a watchdog: a step that produces a non-finite state, or whose hinge solve failed by more
-// than a micrometre, is undone and redone as two half steps (down to 1/64 of the step) with a solver warning; a
-// solve that stops just short of the tolerance is reported once per episode.
+// than a micrometre, is undone and redone as two half steps, down to 1/64 of the step; if even that fails the
+// simulation stops with an error rather than go on from a broken state. Each episode of halving, and each of a
+// solve stopping short of the tolerance, is reported once.
 void Ladder::step_guarded(double h, int depth) {
   const core::Snapshot start = world_.save();
   world_.step(h);
   const auto& st = world_.last_step();
   const bool failed = !world_.finite() || (!st.converged && !(st.residual < 1e-6));
-  if (failed && depth < 6) {
+  if (failed) {
     world_.restore(start);
-    if (depth == 0) emit(EventKind::SolverWarning, 0, 0, "step failed (non-finite or unsolved hinges): redone in halves");
+    if (depth >= 6)
+      throw std::runtime_error("the hinge solve failed even with 1/64 of the time step at t = " +
+                               format_number(world_.time()) + " s; the motion is too violent for sim.dt = " +
+                               format_number(h * 64) + " s (try a smaller sim.dt)");
+    if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, "hinge solve failed: steps redone in halves");
+    halving_ = true;
     step_guarded(0.5 * h, depth + 1);
     step_guarded(0.5 * h, depth + 1);
     return;
   }
-  if (!world_.finite()) throw std::runtime_error("the simulation diverged even with 1/64 of the time step");
+  if (depth == 0) halving_ = false;
   if (!st.converged && !warned_)
-    emit(EventKind::SolverWarning, 0, 0, "hinge solve stopped at residual " + std::to_string(st.residual) + " m");
+    emit(EventKind::SolverWarning, 0, 0, "hinge solve stopped at residual " + format_number(st.residual) + " m");
   warned_ = !st.converged;
 }
 

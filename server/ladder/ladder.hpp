@@ -147,7 +147,8 @@ class Ladder {
   int world_particle_ = -1;  // the pin's world particle when top == Pinned
   double s_detect_ = 0;      // s above which a hinge is in a forbidden quadrant
   std::vector<Event> events_;
-  bool warned_ = false;
+  bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
+  bool halving_ = false;  // steps are being redone in halves (reported once per episode)
 };
 
 }  // namespace ladder::model

@@ -1,0 +1,173 @@
+// ladderd --offline as a user runs it: the real binary, real files, exit codes and error messages.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kLadderd = std::string(LADDER_BINARY_DIR) + "/server/ladderd";
+const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes/";
+
+struct Result {
+  int code;
+  std::string output;  // stdout and stderr
+};
+
+Result ladderd(const std::string& args) {
+  const std::string cmd = kLadderd + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class Offline : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir = fs::temp_directory_path() /
+          ("ladderd-test-" + std::to_string(::getpid()) + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+  std::string path(const std::string& name) const { return (dir / name).string(); }
+  fs::path dir;
+};
+
+// The classic scene for 10 s: the events name hinges 1..5 flipping in order; the trajectory has its exact header and
+// one row per block every 10 ms; the summary has every documented key with sane values.
+TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
+  const Result r = ladderd("--offline --quiet --scene " + kScenes + "classic.toml --duration 10 --events " +
+                           path("ev.jsonl") + " --trajectory " + path("traj.csv") + " --summary " + path("sum.json"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::map<int, double> first;
+  std::istringstream events(slurp(path("ev.jsonl")));
+  for (std::string line; std::getline(events, line);) {
+    const json e = json::parse(line);
+    ASSERT_TRUE(e.contains("t") && e.contains("kind") && e.contains("hinge") && e.contains("energy_removed")) << line;
+    if (e["kind"] == "flip_flop" && !first.count(e["hinge"].get<int>())) first[e["hinge"]] = e["t"];
+  }
+  ASSERT_EQ(first.size(), 5u);
+  for (int k = 2; k <= 5; ++k) EXPECT_GT(first[k], first[k - 1]);
+
+  std::istringstream traj(slurp(path("traj.csv")));
+  std::string line;
+  std::getline(traj, line);
+  EXPECT_EQ(line, "t,block,x,y,theta");
+  int rows = 0;
+  double last_t = -1;
+  while (std::getline(traj, line)) {
+    double t, x, y, th;
+    int block;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%d,%lf,%lf,%lf", &t, &block, &x, &y, &th), 5) << line;
+    EXPECT_EQ(block, rows % 6);
+    EXPECT_NEAR(t, 0.01 * (rows / 6), 1e-9);
+    EXPECT_TRUE(std::isfinite(x) && std::isfinite(y) && std::isfinite(th));
+    last_t = t;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 1001 * 6);  // t = 0, 0.01, ..., 10
+  EXPECT_NEAR(last_t, 10.0, 1e-9);
+
+  const json s = json::parse(slurp(path("sum.json")));
+  EXPECT_EQ(s["steps"], 10000);
+  EXPECT_EQ(s["blocks"], 6);
+  EXPECT_EQ(s["failed"], false);
+  EXPECT_GT(s["wall_seconds"].get<double>(), 0);
+  EXPECT_GT(s["block_steps_per_second"].get<double>(), 0);
+  EXPECT_LT(s["max_hinge_error_m"].get<double>(), 1e-9);
+  // The hand's tip does work on the ladder, at most lifting every block by one length: N m g L = 0.094 J.
+  EXPECT_LT(std::abs(s["energy_final_J"].get<double>() - s["energy_initial_J"].get<double>()), 6 * 0.025 * 9.81 * 0.064);
+  EXPECT_EQ(s["events"]["flip_flop"], 5);
+}
+
+TEST_F(Offline, SetOverridesTheScene) {
+  const Result r = ladderd("--offline --quiet --scene " + kScenes + "classic.toml --duration 0.05 --set ladder.blocks=3"
+                           " --set sim.integrator=rk4 --trajectory " + path("traj.csv") + " --summary " + path("sum.json"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json s = json::parse(slurp(path("sum.json")));
+  EXPECT_EQ(s["blocks"], 3);
+  EXPECT_EQ(s["integrator"], "rk4");
+  EXPECT_EQ(s["steps"], 50);
+  std::istringstream traj(slurp(path("traj.csv")));
+  int rows = -1;
+  for (std::string line; std::getline(traj, line);) ++rows;
+  EXPECT_EQ(rows, 6 * 3);  // t = 0 .. 0.05 every 10 ms, three blocks
+}
+
+// Same scene, same settings: the same trajectory to the last digit (17 significant digits are written).
+TEST_F(Offline, RunsAreBitForBitRepeatable) {
+  for (const char* name : {"a.csv", "b.csv"}) {
+    const Result r = ladderd("--offline --quiet --scene " + kScenes + "double-ripple.toml --duration 2 --trajectory " +
+                             path(name));
+    ASSERT_EQ(r.code, 0) << r.output;
+  }
+  EXPECT_EQ(slurp(path("a.csv")), slurp(path("b.csv")));
+}
+
+TEST_F(Offline, BadSceneIsRefusedWithItsPosition) {
+  std::ofstream(path("bad.toml")) << "[ladder]\nblocks = 4\nmass = -1\n";
+  const Result r = ladderd("--offline --scene " + path("bad.toml") + " --duration 1 --summary " + path("sum.json"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find(path("bad.toml") + ":3:8: ladder.mass must be > 0 (got -1)"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("sum.json")));  // nothing was run, nothing written
+}
+
+TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
+  const std::string scene = " --scene " + kScenes + "classic.toml";
+  struct Case { std::string args, words; };
+  for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "File does not exist"},
+                        Case{"--offline" + scene + " --duration ten", "--duration"},
+                        Case{"--offline" + scene, "--duration"},
+                        Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
+                        Case{"--offline" + scene + " --duration 1 --set sim.dt=nan", "sim.dt"},
+                        Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json", "cannot write"},
+                        Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
+                        Case{scene + " --duration 1", "--offline"}}) {
+    const Result r = ladderd(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
+  }
+}
+
+TEST_F(Offline, KeysListsEverySceneKey) {
+  const Result r = ladderd("--keys");
+  EXPECT_EQ(r.code, 0);
+  for (const char* key : {"ladder.blocks", "sim.dt", "sim.integrator", "solver.kind", "solver.tolerance",
+                          "solver.max_iterations", "ladder.flip_impact"})
+    EXPECT_NE(r.output.find(key), std::string::npos) << key;
+}
+
+// A run that cannot be carried out (a 5000-block column that is too stiff for 1/64 of a 0.05 s step) exits 3,
+// says why, and still leaves a summary that says it failed.
+TEST_F(Offline, AFailedRunExitsThreeAndSaysSo) {
+  const Result r = ladderd("--offline --quiet --scene " + kScenes + "free-chain.toml --duration 1 --set ladder.blocks=2000"
+                           " --set sim.dt=0.05 --set solver.max_iterations=3 --summary " + path("sum.json"));
+  ASSERT_EQ(r.code, 3) << r.output;
+  EXPECT_NE(r.output.find("smaller sim.dt"), std::string::npos) << r.output;
+  const json s = json::parse(slurp(path("sum.json")));
+  EXPECT_EQ(s["failed"], true);
+  EXPECT_NE(s["error"].get<std::string>().find("1/64"), std::string::npos);
+}
+
+}  // namespace
