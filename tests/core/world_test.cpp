@@ -271,6 +271,31 @@ TEST_F(Restructuring, RefusesWhatItCannotSolveAndChangesNothing) {
   EXPECT_THROW(world.apply_impulse(parts[0], Vec2(0, 0), Vec2(std::nan(""), 0)), std::invalid_argument);
 }
 
+// A held block (kinematic, still) and a free block folded against it and spinning: moving the hinge to the far
+// corners (the paper's Algorithm 2: separate, then combine the far corners) is an impulse at the new hinge only,
+// so the free block's angular momentum about the new hinge is conserved (1e-12 relative).
+TEST(World, HeldPairFlipConservesTheFreeBlocksAngularMomentumAboutTheNewHinge) {
+  World world;
+  const Vec2 hinge(0.0, 0.0);
+  PartDef held = block(hinge - Vec2(kW / 2, -kL / 2));
+  held.kinematic = true;
+  const int b0 = world.add_part(held);
+  const int b1 = world.add_part(block(hinge - Rot::of(std::numbers::pi) * Vec2(kW / 2, kL / 2), std::numbers::pi));
+  const int p0 = world.first_particle(b0), p1 = world.first_particle(b1);
+  world.connect(p0 + 0, p1 + 1);
+  world.finalize();
+  world.apply_impulse(b1, world.particle_position(p1 + 0), Vec2(-2e-3, 1e-3));  // spin it about the hinge
+  ASSERT_GT(std::abs(world.part_omega(b1)), 0.1);
+  const Vec2 pivot = world.particle_position(p1 + 0);  // the new hinge: block 1's far corner, on block 0's
+  ASSERT_LT((pivot - world.particle_position(p0 + 1)).norm(), 1e-15);
+  const double before = world.angular_momentum({b1}, pivot);
+  world.separate(p0 + 0, p1 + 1);
+  const Restructure r = world.combine(p0 + 1, p1 + 0);
+  EXPECT_NEAR(world.angular_momentum({b1}, pivot), before, 1e-12 * std::abs(before));
+  EXPECT_GT(r.energy_removed, 0);
+  EXPECT_LT(world.particle_velocity(p1 + 0).norm(), 1e-14);  // its corner is now held still
+}
+
 // Same model, same steps: the same bits (floating-point contraction is off in the build).
 TEST(World, DeterministicToTheBit) {
   const auto run = [] {
