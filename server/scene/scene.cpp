@@ -24,7 +24,7 @@ namespace {
 using core::Vec2;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr int kMaxBlocks = 10'000'000;
+constexpr int kMaxBlocks = 1'000'000;  // about 1 GB of memory; issue 6 tests up to this size
 
 // ---------------------------------------------------------------------------------------------------------------
 // The schema: every documented key with its type and valid range. keys_help() prints it and the reader takes each
