@@ -106,7 +106,7 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
   if (rows_.empty()) return true;
   const bool paper = options_.solver == SolverKind::NewtonLineSearch;
   bool exact = paper;
-  BlockTridiag newton;
+  BlockTridiag& newton = newton_;
   double res = residuals(c_);
   const double initial = res;
   for (int it = 0; it < options_.max_iterations; ++it) {
@@ -143,7 +143,7 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
       continue;
     }
     // Backtracking: accept the largest step 2^-j whose residual satisfies f(new) <= (1 - 1e-4 step) f(old),
-    // f = |C|^2 / 2; after 10 halvings take the last trial anyway (the next iteration re-linearises).
+    // f = |C|^2 / 2; the 10th halving is kept whatever it gives (the next iteration re-linearises).
     const auto start = state_;
     const auto impulse_start = row_impulse_;
     double f0 = 0;
@@ -154,7 +154,7 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
       double f = 0;
       res = residuals(c_);
       for (const Vec2& ck : c_) f += 0.5 * ck.squaredNorm();
-      if (f <= (1 - 1e-4 * step) * f0) break;
+      if (f <= (1 - 1e-4 * step) * f0 || j == 9) break;  // after 10 halvings keep the last trial
       state_ = start;
       row_impulse_ = impulse_start;
       for (Vec2& m : mu_) m *= 0.5;
@@ -193,7 +193,7 @@ void World::project_velocities() {
     a.w += A.inv_inertia * cross(ua_[k], mu_[k]);
     b.v -= B.inv_mass * mu_[k];
     b.w -= B.inv_inertia * cross(ub_[k], mu_[k]);
-    if (k < row_impulse_.size()) row_impulse_[k] += mu_[k];
+    row_impulse_[k] += mu_[k];
   }
 }
 
@@ -201,11 +201,12 @@ void World::project_velocities() {
 // consistent (index-1 formulation, used by the explicit integrators); the hinge forces times impulse_weight are
 // added to the step's row impulses:
 //   K lambda = -(a_free(p_a) - a_free(p_b)),  a_free(p) = W F + (W tau) perp(u) - w^2 u  (driven bodies: their own)
-void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight) {
+void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight,
+                                     double h) {
   const size_t nb = bodies_.size();
-  std::vector<Vec2> force;
-  std::vector<double> torque;
-  accumulate_forces(force, torque);
+  std::vector<Vec2>& force = force_;
+  std::vector<double>& torque = torque_;
+  accumulate_forces(force, torque, h);
   lin.resize(nb);
   ang.resize(nb);
   for (size_t b = 0; b < nb; ++b) {

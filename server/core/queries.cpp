@@ -74,7 +74,9 @@ bool World::finite() const {
 // through other welds). S moves rigidly with its body, so about S's centre of mass c:
 //   linear:   m_S (v1 - v0)  = h F_ext + sum J_row + J_weld
 //   angular:  I_S (w1 - w0)  = h tau_ext + sum (p_row - c) x J_row + (P - c) x J_weld + h M_weld
-// with the row impulses the solver applied and P the weld point; the lever arms are taken at the end of the step.
+// with the row impulses the solver applied and P the weld point. Every lever arm is taken at mid-step (the mean
+// of its start and end positions): the impulses act through the step, and end-of-step arms would be off by
+// O(w h) (40 % of the moment at w = 100 rad/s and h = 1 ms; second order at mid-step).
 double World::weld_moment(int pa, int pb) const {
   const int j = find_joint(pa, pb);
   if (j < 0 || joints_[j].kind != JointKind::Weld)
@@ -102,6 +104,8 @@ double World::weld_moment(int pa, int pb) const {
   if (in[part_a]) return 0;  // welded around a loop: no moment can be attributed to this weld
   const BodyState& s1 = state_[body];
   const BodyState& s0 = step_start_[body];
+  // Where a point fixed in the body frame is at mid-step, and its velocity at the start and end.
+  const auto mid = [&](const Vec2& r) { return Vec2(0.5 * ((s0.x + s0.q * r) + (s1.x + s1.q * r))); };
   double m = 0, inertia = 0;
   Vec2 rel_c = Vec2::Zero();  // S's centre of mass in the body frame
   for (int i : side) {
@@ -111,7 +115,7 @@ double World::weld_moment(int pa, int pb) const {
   if (!(m > 0)) return 0;
   rel_c /= m;
   for (int i : side) inertia += parts_[i].inertia + parts_[i].mass * (parts_[i].rel_x - rel_c).squaredNorm();
-  const Vec2 c = s1.x + s1.q * rel_c;
+  const Vec2 c = mid(rel_c);
   const Vec2 v1 = s1.v + s1.w * perp(s1.q * rel_c);
   const Vec2 v0 = s0.v + s0.w * perp(s0.q * rel_c);
   const double h = last_h_;
@@ -124,13 +128,14 @@ double World::weld_moment(int pa, int pb) const {
     const Vec2 d0 = s0.q * p.rel_x;
     const Vec2 fp = p.mass * (options_.gravity - options_.linear_damping * (s0.v + s0.w * perp(d0)));
     f_ext += fp;
-    tau_ext += cross(s1.q * (p.rel_x - rel_c), fp) - options_.angular_damping * p.inertia * s0.w;
+    tau_ext += cross(mid(p.rel_x) - c, fp) - options_.angular_damping * p.inertia * s0.w;
   }
-  for (const AppliedForce& af : forces_) {
-    if (!in[af.part]) continue;
+  for (const AppliedForce& af : step_forces_) {
+    if (!in[af.part] || !((t_ - h) < af.until)) continue;
     const Part& p = parts_[af.part];
-    f_ext += af.force;
-    tau_ext += cross(s1.q * (p.rel_x + p.rel_q * af.local - rel_c), af.force);
+    const Vec2 force = std::min(1.0, (af.until - (t_ - h)) / h) * af.force;
+    f_ext += force;
+    tau_ext += cross(mid(p.rel_x + p.rel_q * af.local) - c, force);
   }
   Vec2 j_rows = Vec2::Zero();
   double m_rows = 0;
@@ -138,17 +143,16 @@ double World::weld_moment(int pa, int pb) const {
     const Row& r = rows_[k];
     const double friction = options_.hinge_friction * (state_[r.b].w - state_[r.a].w) * h;
     if (in[r.part_a]) {
-      const Vec2 point = state_[r.a].x + state_[r.a].q * r.ra;
       j_rows += row_impulse_[k];
-      m_rows += cross(point - c, row_impulse_[k]) + friction;
+      m_rows += cross(mid(r.ra) - c, row_impulse_[k]) + friction;
     }
     if (in[r.part_b]) {
-      const Vec2 point = state_[r.b].x + state_[r.b].q * r.rb;
       j_rows -= row_impulse_[k];
-      m_rows -= cross(point - c, row_impulse_[k]) + friction;
+      m_rows -= cross(mid(r.rb) - c, row_impulse_[k]) + friction;
     }
   }
-  const Vec2 weld_point = particle_position(pb);
+  const Part& pbp = parts_[part_b];
+  const Vec2 weld_point = mid(pbp.rel_x + pbp.rel_q * particles_[pb].local);
   const Vec2 j_weld = m * (v1 - v0) - h * f_ext - j_rows;
   const double angular = inertia * (s1.w - s0.w) - h * tau_ext - m_rows - cross(weld_point - c, j_weld);
   return angular / h;

@@ -75,7 +75,9 @@ void World::drive_kinematic(double t) {
 }
 
 // Applied forces at the current state: gravity, damping, hinge friction and the users' forces.
-void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau) const {
+// h is the length of the step the forces will act over: a user's force that ends within the step is weighted by
+// the fraction of the step it covers, so a push shorter than a step gives its own impulse, not F h.
+void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const {
   const size_t nb = bodies_.size();
   f.assign(nb, Vec2::Zero());
   tau.assign(nb, 0.0);
@@ -110,8 +112,9 @@ void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau) co
     const Part& p = parts_[af.part];
     const BodyState& s = state_[p.body];
     const Vec2 d = s.q * (p.rel_x + p.rel_q * af.local);
-    f[p.body] += af.force;
-    tau[p.body] += cross(d, af.force);
+    const Vec2 force = std::min(1.0, (af.until - t_) / h) * af.force;
+    f[p.body] += force;
+    tau[p.body] += cross(d, force);
   }
 }
 
@@ -144,6 +147,7 @@ void World::step(double h) {
   std::fill(row_impulse_.begin(), row_impulse_.end(), Vec2::Zero());
   if (has_welds_) step_start_ = state_;
   step_structure_ = structure_;
+  step_forces_ = forces_;
   switch (options_.integrator) {
     case Integrator::SymplecticEuler: step_shake(h, false); break;
     case Integrator::Rattle: step_shake(h, true); break;
@@ -171,13 +175,13 @@ void World::step_shake(double h, bool rattle) {
     stats_.regularised_pivots += system_.factor();
     factor_version_ = state_version_;
   }
-  accumulate_forces(force_, torque_);
+  accumulate_forces(force_, torque_, h);
   kick(rattle ? 0.5 * h : h, force_, torque_);
   drift(h);
   drive_kinematic(t1);
   stats_.converged = solve_positions(ua0_, ub0_, 1.0 / h);
   if (rattle) {
-    accumulate_forces(force_, torque_);
+    accumulate_forces(force_, torque_, h);
     kick(0.5 * h, force_, torque_);
   }
   t_ = t1;
@@ -189,7 +193,7 @@ void World::step_explicit(double h, bool rk4) {
   const size_t nb = bodies_.size();
   drive_kinematic(t0);  // their accelerations enter the first stage
   if (!rk4) {
-    constraint_accelerations(acc_lin_, acc_ang_, h);
+    constraint_accelerations(acc_lin_, acc_ang_, h, h);
     for (size_t b = 0; b < nb; ++b) {
       if (bodies_[b].kinematic) continue;
       BodyState& s = state_[b];
@@ -222,7 +226,7 @@ void World::step_explicit(double h, bool rk4) {
         drive_kinematic(t0 + c);
         t_ = t0 + c;
       }
-      constraint_accelerations(acc_lin_, acc_ang_, weight[stage]);
+      constraint_accelerations(acc_lin_, acc_ang_, weight[stage], h);
       // Store the derivative of the stage: (dx, dth) = (v, w), (dv, dw) = (a, alpha), packed in a BodyState.
       k[stage].resize(nb);
       for (size_t b = 0; b < nb; ++b) {
@@ -261,12 +265,13 @@ void World::step_explicit(double h, bool rk4) {
 
 Snapshot World::save() const {
   if (dirty_) throw std::logic_error("save: the model has unbuilt hinges; call finalize() first");
-  return {state_, t_, structure_};
+  return {state_, forces_, t_, structure_};
 }
 
 void World::restore(const Snapshot& s) {
   if (s.structure != structure_) throw std::logic_error("restore: the snapshot belongs to another model structure");
   state_ = s.bodies;
+  forces_ = s.forces;
   t_ = s.t;
   mark_state_changed();
 }

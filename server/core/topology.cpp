@@ -89,8 +89,13 @@ void World::release(int part) {
   if (!p.kinematic) return;
   if (!(p.mass > 0 && p.inertia > 0)) throw std::invalid_argument("a massless part cannot be released");
   p.kinematic = false;
+  try {
+    rebuild();  // keeps the part's current velocity: it leaves the hand moving as the hand moved
+  } catch (...) {
+    p.kinematic = true;  // a released body may be left in three hinges: stay held
+    throw;
+  }
   p.drive = nullptr;
-  rebuild();  // keeps the part's current velocity: it leaves the hand moving as the hand moved
   project_velocities();
 }
 
@@ -138,10 +143,9 @@ Restructure World::combine(int pa, int pb) {
     result.kind = JointKind::Hinge;
   }
   try {
-    rebuild();
+    rebuild();  // validates everything before it commits anything
   } catch (...) {
-    joints_ = saved;
-    rebuild();
+    joints_ = saved;  // so this is all there is to undo
     throw;
   }
   // Make the configuration and the velocities consistent with the new connectivity. Positions: a hinge made
@@ -165,6 +169,7 @@ Restructure World::separate(int pa, int pb) {
   const int j = find_joint(pa, pb);
   if (j < 0)
     throw std::invalid_argument("separate: no hinge or weld joins " + particle_name(pa) + " and " + particle_name(pb));
+  const auto saved = joints_;
   Restructure result;
   if (joints_[j].kind == JointKind::Weld) {
     // Unlock (Algorithm 4): the welded body splits back into the bodies it was made of, each moving as it
@@ -176,7 +181,12 @@ Restructure World::separate(int pa, int pb) {
     result.kind = JointKind::Hinge;
     result.removed = true;
   }
-  rebuild();
+  try {
+    rebuild();  // an unlock can refuse: a split body may be left in three hinges
+  } catch (...) {
+    joints_ = saved;
+    throw;
+  }
   return result;
 }
 
@@ -241,7 +251,9 @@ void World::set_body_from_parts(int b, const std::vector<int>& parts, const std:
     } else {
       p.rel_x = s.q.apply_inverse(motion[i].x - s.x);
       p.rel_th = motion[i].th - s.th;
-      p.rel_q = Rot::of(p.rel_th);  // exactly unit, unlike a product of two rounded rotations
+      // From the rotations, not from the unwrapped angles (which lose all precision at large angles), and pulled
+      // back to unit length so that repeated merges and splits cannot make bodies grow.
+      p.rel_q = (s.q.inverse() * motion[i].q).renormalised();
     }
   }
 }
@@ -256,7 +268,6 @@ void World::connect(int pa, int pb) {
 }
 
 void World::rebuild() {
-  dirty_ = false;
   const int np = part_count();
   std::vector<PartMotion> motion(static_cast<size_t>(np));
   for (int i = 0; i < np; ++i) motion[i] = part_motion(i);
@@ -308,6 +319,7 @@ void World::rebuild() {
   }
   order_rows(bodies, rows);  // may throw: nothing is committed yet
   // Commit.
+  dirty_ = false;
   bodies_.swap(bodies);
   state_.assign(groups.size(), BodyState{});
   body_parts_ = std::move(groups);

@@ -88,8 +88,17 @@ struct BodyState {
   double w = 0;     // [rad/s]
 };
 
+// A force a user applies at a point fixed in a part (given in the part's frame) until a time.
+struct AppliedForce {
+  int part = 0;
+  Vec2 local{0, 0};
+  Vec2 force{0, 0};  // [N], world frame
+  double until = 0;  // [s]
+};
+
 struct Snapshot {
   std::vector<BodyState> bodies;
+  std::vector<AppliedForce> forces;  // a redone step must apply the same forces
   double t = 0;
   std::uint64_t structure = 0;
 };
@@ -204,7 +213,6 @@ class World {
     int joint;
     bool link_prev;
   };
-  struct AppliedForce { int part; Vec2 local; Vec2 force; double until; };
 
   // topology.cpp
   void rebuild();
@@ -225,11 +233,11 @@ class World {
   void apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                         double velocity_scale);
   bool solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, double velocity_scale);
-  void constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight);
+  void constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight, double h);
 
   // step.cpp
   void drive_kinematic(double t);
-  void accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau) const;
+  void accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const;
   void kick(double h, const std::vector<Vec2>& f, const std::vector<double>& tau);
   void drift(double h);
   void step_shake(double h, bool rattle);
@@ -252,6 +260,7 @@ class World {
   // Factorisation of G M^-1 G^T at the state with version factor_version_: the velocity projection that ends a
   // step factors it, and the next step's position solve reuses it as its (chord) Newton matrix.
   BlockTridiag system_;
+  BlockTridiag newton_;  // the exact (non-symmetric) Newton matrix, when the chord is not enough
   std::uint64_t state_version_ = 1, factor_version_ = 0;
   StepStats stats_;
 
@@ -259,6 +268,7 @@ class World {
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
   std::vector<BodyState> step_start_;
+  std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
   double last_h_ = 0;
 

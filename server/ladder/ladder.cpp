@@ -119,7 +119,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   const double lean = std::atan2(W, L);
   const bool hanging = spec.start == Start::Hanging && spec.top != Top::Free;
   const auto corner_of = [](int k) { return (k % 2 == 1) ? 0 : 3; };  // hinge k's corner in the initial state
-  std::vector<Vec2> centre(static_cast<size_t>(n)), hinge(static_cast<size_t>(n + 1), Vec2::Zero());
+  std::vector<Vec2> centre(static_cast<size_t>(n)), hinge(static_cast<size_t>(n), Vec2::Zero());
   std::vector<double> angle(static_cast<size_t>(n), 0.0);
   angle[0] = hanging && spec.top == Top::Pinned ? -lean : 0.0;
   centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, L, 0.5 * W));  // top-left corner at the origin
@@ -128,7 +128,6 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     angle[k] = hanging ? (k % 2 == 1 ? lean : -lean) : 0.0;
     centre[k] = hinge[k] - Rot::of(angle[k]) * corner_local(k, corner_of(k), L, 0.5 * W);
   }
-  if (n >= 2) hinge[n] = centre[n - 1] + Rot::of(angle[n - 1]) * corner_local(n - 1, corner_of(n), L, 0.5 * W);
   const Rot tilt = Rot::of(spec.tilt);
   for (int i = 0; i < n; ++i) {
     const double m = spec.masses.empty() ? spec.mass : spec.masses[i];
@@ -180,6 +179,8 @@ Vec2 Ladder::lengthwise(int i) const {
 }
 
 double Ladder::hinge_measure(int k) const {
+  if (k < 1 || k >= spec_.blocks)
+    throw std::invalid_argument("hinge_measure: no hinge " + std::to_string(k) + " between two blocks");
   const int c = hinges_[k].corner;
   const auto unit = [&](int block) {
     return Vec2((world_.particle_local(particle(block, c ^ 1)) - world_.particle_local(particle(block, c))).normalized());
@@ -189,12 +190,23 @@ double Ladder::hinge_measure(int k) const {
   return side_sign(k - 1, c) * core::cross(a, b);
 }
 
+// ds/dt = sigma (a.b) (w_k - w_{k-1}): turning block k by dphi changes s by sigma (a.b) dphi, block k-1 the other
+// way. A hinge counts as crossing only while it is moving into the forbidden half: a pair that has just been
+// unlocked sits a hair inside it (s <= s_det / 2), and the integrator's own O(h^2 w^2) error in the pair's
+// relative angle must not lock it again while it is turning apart.
+bool Ladder::approaching(int k) const {
+  const int c = hinges_[k].corner;
+  const Vec2 a = corner(k - 1, c ^ 1) - corner(k - 1, c), b = corner(k, c ^ 1) - corner(k, c);
+  return side_sign(k - 1, c) * a.dot(b) * (world_.part_omega(k) - world_.part_omega(k - 1)) > 0;
+}
+
 bool Ladder::any_violation(std::vector<double>& s) const {
   s.assign(hinges_.size(), -1.0);
   bool any = false;
   for (size_t k = 1; k < hinges_.size(); ++k) {
     if (hinges_[k].status != HingeStatus::Hinged) continue;
     s[k] = hinge_measure(static_cast<int>(k));
+    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) s[k] = std::min(s[k], s_detect_);  // not crossing
     any = any || s[k] > s_detect_;
   }
   return any;
@@ -219,8 +231,9 @@ void Ladder::step_guarded(double h, int depth) {
     world_.restore(start);
     if (depth >= 6)
       throw std::runtime_error("the hinge solve failed even with 1/64 of the time step at t = " +
-                               format_number(world_.time()) + " s; the motion is too violent for sim.dt = " +
-                               format_number(h * 64) + " s (try a smaller sim.dt)");
+                               format_number(world_.time()) + " s: the motion is too violent for sim.dt = " +
+                               format_number(h * 64) + " s and these settings (try a smaller sim.dt, or check "
+                               "masses, forces, damping and the tip duration)");
     if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, "hinge solve failed: steps redone in halves");
     halving_ = true;
     step_guarded(0.5 * h, depth + 1);

@@ -128,12 +128,14 @@ class Ladder {
   core::World& world() { return world_; }
 
   static int particle(int block, int c) { return 5 * block + c; }
+  // Throws std::invalid_argument naming the valid range when block i does not exist.
+  void check_block(int i) const;
 
  private:
   struct Hand;  // the held top block's prescribed motion
-  void check_block(int i) const;
   void check_hinge(int k) const;
   bool any_violation(std::vector<double>& s) const;
+  bool approaching(int k) const;
   double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
   void restructure(int k);
   void check_unlocks();

@@ -90,7 +90,7 @@ constexpr std::array kKeys{
     KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
            .help = "hinge constraint solver"},
-    KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = above(0),
+    KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = {0, 1e-6, true, false},
            .help = "hinge position error the solver drives below [m]"},
     KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "iterations per nonlinear solve"},

@@ -13,6 +13,7 @@ void Simulation::apply(const TimedCommand& c) {
   if (c.command == "tip") {
     l.tip();
   } else if (c.command == "poke") {
+    l.check_block(c.block);  // before its centre is looked up
     const core::Vec2 at = c.has_at ? c.at : l.block_centre(c.block);
     l.poke(c.block, at, c.impulse);
   } else if (c.command == "push") {

@@ -296,6 +296,27 @@ TEST(World, HeldPairFlipConservesTheFreeBlocksAngularMomentumAboutTheNewHinge) {
   EXPECT_LT(world.particle_velocity(p1 + 0).norm(), 1e-14);  // its corner is now held still
 }
 
+// A held block and a block welded below it at its top-right corner, pushed sideways at its bottom-left corner:
+// at rest, the weld must carry the push's and gravity's moment about the weld point exactly, F L - m g W / 2
+// (counter-clockwise positive) for a push to the left, the opposite sign plus gravity for a push to the right.
+TEST(World, WeldMomentBalancesTheLoads) {
+  for (double push : {-0.5, 0.5}) {
+    World world;
+    PartDef held = block(Vec2(kW / 2, -kL / 2));
+    held.kinematic = true;
+    const int b0 = world.add_part(held);
+    const int b1 = world.add_part(block(Vec2(kW / 2, -3 * kL / 2)));
+    const int p0 = world.first_particle(b0), p1 = world.first_particle(b1);
+    world.connect(p0 + 0, p1 + 1);
+    world.finalize();
+    world.combine(p0 + 0, p1 + 1);
+    world.add_force(b1, Vec2(-kW / 2, -kL / 2), Vec2(push, 0), 1.0);
+    world.step(1e-3);
+    const double expected = -push * kL - kM * 9.81 * kW / 2;
+    EXPECT_NEAR(world.weld_moment(p0 + 0, p1 + 1), expected, 1e-12) << "push " << push;
+  }
+}
+
 // Same model, same steps: the same bits (floating-point contraction is off in the build).
 TEST(World, DeterministicToTheBit) {
   const auto run = [] {
