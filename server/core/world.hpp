@@ -154,7 +154,6 @@ class World {
   // Makes velocities consistent with the hinges by the least-kinetic-energy impulse (used after any change of
   // velocities or of kinematic drives from outside the step).
   void project_velocities();
-  void clear_forces() { forces_.clear(); }
 
   // --- queries ---
   int part_count() const { return static_cast<int>(parts_.size()); }
@@ -172,7 +171,6 @@ class World {
   Rot part_rotation(int part) const;
   Vec2 part_velocity(int part) const;
   double part_omega(int part) const;
-  const BodyState& body_state(int body) const { return state_[body]; }
 
   double kinetic_energy() const;    // dynamic bodies only [J]
   double potential_energy() const;  // gravity, dynamic bodies only [J]
@@ -180,7 +178,6 @@ class World {
   double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
   double max_hinge_error() const;   // largest distance between two hinged particles [m]
   bool finite() const;              // no NaN or infinity anywhere in the state
-  std::uint64_t structure_version() const { return structure_; }
 
   // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
   // particle pb's side of it, taken about the weld point. Used to decide when a lock lets go.
