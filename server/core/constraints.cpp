@@ -53,6 +53,13 @@ void World::build_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& u
   build_newton_system(ua, ub, ua, ub, sys);
 }
 
+// Builds K at the current positions' anchors (ua, ub) into system_, factors it, and records for which state.
+void World::factor_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub) {
+  build_system(ua, ub, system_);
+  stats_.regularised_pivots += system_.factor();
+  factor_version_ = state_version_;
+}
+
 double World::residuals(std::vector<Vec2>& c) const {
   const size_t n = rows_.size();
   c.resize(n);
@@ -172,9 +179,7 @@ void World::project_velocities() {
   ensure_built();
   if (rows_.empty()) return;
   world_anchors(ua_, ub_);
-  build_system(ua_, ub_, system_);
-  stats_.regularised_pivots += system_.factor();
-  factor_version_ = state_version_;
+  factor_system(ua_, ub_);
   const size_t n = rows_.size();
   mu_.resize(n);
   for (size_t k = 0; k < n; ++k) {
@@ -220,11 +225,7 @@ void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>
   }
   if (rows_.empty()) return;
   world_anchors(ua_, ub_);
-  if (factor_version_ != state_version_) {
-    build_system(ua_, ub_, system_);
-    stats_.regularised_pivots += system_.factor();
-    factor_version_ = state_version_;
-  }
+  if (factor_version_ != state_version_) factor_system(ua_, ub_);
   const size_t n = rows_.size();
   mu_.resize(n);
   for (size_t k = 0; k < n; ++k) {

@@ -104,7 +104,7 @@ double World::weld_moment(int pa, int pb) const {
   if (in[part_a]) return 0;  // welded around a loop: no moment can be attributed to this weld
   const BodyState& s1 = state_[body];
   const BodyState& s0 = step_start_[body];
-  // Where a point fixed in the body frame is at mid-step, and its velocity at the start and end.
+  // Where a point fixed in the body frame is at mid-step.
   const auto mid = [&](const Vec2& r) { return Vec2(0.5 * ((s0.x + s0.q * r) + (s1.x + s1.q * r))); };
   double m = 0, inertia = 0;
   Vec2 rel_c = Vec2::Zero();  // S's centre of mass in the body frame
@@ -133,7 +133,7 @@ double World::weld_moment(int pa, int pb) const {
   for (const AppliedForce& af : step_forces_) {
     if (!in[af.part] || !((t_ - h) < af.until)) continue;
     const Part& p = parts_[af.part];
-    const Vec2 force = std::min(1.0, (af.until - (t_ - h)) / h) * af.force;
+    const Vec2 force = af.over_step(t_ - h, h);
     f_ext += force;
     tau_ext += cross(mid(p.rel_x + p.rel_q * af.local) - c, force);
   }

@@ -74,9 +74,8 @@ void World::drive_kinematic(double t) {
   mark_state_changed();
 }
 
-// Applied forces at the current state: gravity, damping, hinge friction and the users' forces.
-// h is the length of the step the forces will act over: a user's force that ends within the step is weighted by
-// the fraction of the step it covers, so a push shorter than a step gives its own impulse, not F h.
+// Applied forces at the current state: gravity, damping, hinge friction and the users' forces (those weighted over
+// the step of length h that they act for, AppliedForce::over_step).
 void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const {
   const size_t nb = bodies_.size();
   f.assign(nb, Vec2::Zero());
@@ -112,7 +111,7 @@ void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, do
     const Part& p = parts_[af.part];
     const BodyState& s = state_[p.body];
     const Vec2 d = s.q * (p.rel_x + p.rel_q * af.local);
-    const Vec2 force = std::min(1.0, (af.until - t_) / h) * af.force;
+    const Vec2 force = af.over_step(t_, h);
     f[p.body] += force;
     tau[p.body] += cross(d, force);
   }
@@ -164,17 +163,11 @@ void World::step_shake(double h, bool rattle) {
   // this a short step (event location takes steps of 1e-10 s) turns a 1e-12 m leftover into metres per second.
   if (residuals(c_) > options_.tolerance) {
     world_anchors(ua0_, ub0_);
-    build_system(ua0_, ub0_, system_);
-    stats_.regularised_pivots += system_.factor();
-    factor_version_ = state_version_;
+    factor_system(ua0_, ub0_);
     solve_positions(ua0_, ub0_, 0.0);
   }
   world_anchors(ua0_, ub0_);
-  if (factor_version_ != state_version_) {
-    build_system(ua0_, ub0_, system_);
-    stats_.regularised_pivots += system_.factor();
-    factor_version_ = state_version_;
-  }
+  if (factor_version_ != state_version_) factor_system(ua0_, ub0_);
   accumulate_forces(force_, torque_, h);
   kick(rattle ? 0.5 * h : h, force_, torque_);
   drift(h);
@@ -256,9 +249,7 @@ void World::step_explicit(double h, bool rk4) {
   t_ = t1;
   // Post-stabilisation: back onto C(q) = 0 along the mass-metric normal, then onto G v = 0.
   world_anchors(ua0_, ub0_);
-  build_system(ua0_, ub0_, system_);
-  stats_.regularised_pivots += system_.factor();
-  factor_version_ = state_version_;
+  factor_system(ua0_, ub0_);
   stats_.converged = solve_positions(ua0_, ub0_, 0.0);
   project_velocities();
 }

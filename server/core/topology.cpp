@@ -154,9 +154,7 @@ Restructure World::combine(int pa, int pb) {
   // two particles; its impulses are internal, so free bodies keep their momentum.
   if (result.kind == JointKind::Hinge) {
     world_anchors(ua0_, ub0_);
-    build_system(ua0_, ub0_, system_);
-    system_.factor();
-    factor_version_ = state_version_;
+    factor_system(ua0_, ub0_);
     solve_positions(ua0_, ub0_, 0.0);
   }
   project_velocities();

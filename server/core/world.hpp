@@ -22,6 +22,7 @@
 #include "core/block_tridiag.hpp"
 #include "core/geometry.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -94,6 +95,12 @@ struct AppliedForce {
   Vec2 local{0, 0};
   Vec2 force{0, 0};  // [N], world frame
   double until = 0;  // [s]
+
+  // The force to apply over a step [t0, t0 + h]: weighted by the fraction of the step it still covers, so that a
+  // push shorter than a step gives its own impulse F (until - t0), not F h; zero once it has ended.
+  Vec2 over_step(double t0, double h) const {
+    return t0 < until ? Vec2(std::min(1.0, (until - t0) / h) * force) : Vec2::Zero();
+  }
 };
 
 struct Snapshot {
@@ -224,6 +231,7 @@ class World {
   // constraints.cpp
   void world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const;
   void build_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub, BlockTridiag& sys) const;
+  void factor_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub);
   void build_newton_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub,
                            const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, BlockTridiag& sys) const;
   double residuals(std::vector<Vec2>& c) const;
@@ -261,7 +269,7 @@ class World {
   std::uint64_t state_version_ = 1, factor_version_ = 0;
   StepStats stats_;
 
-  // The last step's impulses, for weld_moment(): per row [N s] at its end-of-step anchors, per body the state
+  // The last step's impulses, for weld_moment(): per row [N s] (applied at the step's anchors), per body the state
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
   std::vector<BodyState> step_start_;

@@ -206,7 +206,7 @@ bool Ladder::any_violation(std::vector<double>& s) const {
   for (size_t k = 1; k < hinges_.size(); ++k) {
     if (hinges_[k].status != HingeStatus::Hinged) continue;
     s[k] = hinge_measure(static_cast<int>(k));
-    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) s[k] = std::min(s[k], s_detect_);  // not crossing
+    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) s[k] = s_detect_;  // inside, but not crossing
     any = any || s[k] > s_detect_;
   }
   return any;

@@ -84,6 +84,7 @@ TEST(ShippedScenes, LongHasAThousandBlocks) {
   const Scene s = load_scene(scene_path("long"));
   EXPECT_EQ(s.ladder.blocks, 1000);
   EXPECT_DOUBLE_EQ(s.ladder.length, 0.064);
+  EXPECT_DOUBLE_EQ(s.dt, 0.00025);  // the step its stiff top needs (docs/benchmarks.md)
   EXPECT_DOUBLE_EQ(s.ladder.hinge_inset, 0.4);
   EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
