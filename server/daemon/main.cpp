@@ -1,54 +1,103 @@
-// ladderd: the Jacob's ladder simulation server. This build runs the simulation offline (--offline); the
-// real-time DDS server is the next piece of work (see README).
+// ladderd: the Jacob's ladder simulation server. By default it serves the ladder in real time over Cyclone DDS
+// until SIGINT or SIGTERM; with --offline it runs a scene as fast as possible with no network and exits.
+#include "daemon/config.hpp"
 #include "daemon/offline.hpp"
-#include "scene/scene.hpp"
+#include "daemon/server.hpp"
+#include "daemon/startup.hpp"
+#include "transport/default_config.hpp"
+#include "transport/dds.hpp"
 
 #include <CLI/CLI.hpp>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <iostream>
 
 int main(int argc, char** argv) {
-  CLI::App app{"ladderd: the virtual Jacob's ladder simulation server"};
-  ladder::daemon::OfflineOptions o;
+  using namespace ladder;
+  CLI::App app{"ladderd: the virtual Jacob's ladder simulation server (real time over DDS, or --offline)"};
+  daemon::OfflineOptions o;
+  daemon::DaemonConfig c;
+  c.server.scenes_dir = LADDER_SCENES_DIR;
+  std::string config_file;
   bool offline = false, quiet = false, keys = false;
-  std::string level = "info";
-  app.add_flag("--offline", offline, "run the scene as fast as possible with no network, then exit");
-  app.add_option("--scene", o.scene, "scene file (TOML), e.g. config/scenes/classic.toml")->check(CLI::ExistingFile);
-  app.add_option("--duration", o.duration, "simulated time to run [s] (offline)");
+  app.add_option("--config", config_file, "configuration file (TOML), e.g. config/ladderd.toml")
+      ->check(CLI::ExistingFile);
+  app.add_option("--scene", o.scene, "scene file (TOML); default: the built-in classic toy at rest")
+      ->check(CLI::ExistingFile);
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
+  auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-232)")->check(CLI::Range(0, 232));
+  auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
+  auto* rate = app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time");
+  auto* publish = app.add_option("--publish-rate", c.server.rates.publish, "states published per second");
+  auto* rtf = app.add_option("--rtf", c.server.rates.real_time_factor,
+                             "real-time factor: sim seconds per wall second, 0 = as fast as possible");
+  auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
+  auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
+  app.add_flag("--offline", offline, "run the scene as fast as possible with no network, then exit");
+  app.add_option("--duration", o.duration, "simulated time to run [s] (offline)");
   app.add_option("--events", o.events, "write events as JSON lines to FILE (offline)");
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");
-  app.add_flag("--quiet", quiet, "no progress lines");
-  app.add_option("--log-level", level, "trace, debug, info, warn, error or off")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+  app.add_flag("--quiet", quiet, "no progress lines (offline)");
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
-  app.set_version_flag("--version", "ladderd 0.1.0");
+  app.set_version_flag("--version", "ladderd 0.2.0");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0; every bad command line exits 2, the code scripts get for any bad input.
     return app.exit(e) == 0 ? 0 : 2;
   }
-
-  spdlog::set_default_logger(spdlog::stderr_color_mt("ladderd"));
-  spdlog::set_level(spdlog::level::from_str(level));
-  spdlog::set_pattern("%^[%l]%$ %v");
   if (keys) {
-    std::cout << ladder::scene::keys_help();
+    std::cout << scene::keys_help();
     return 0;
   }
-  if (!offline) {
-    spdlog::error("this build of ladderd runs offline only: add --offline --scene FILE --duration S "
-                  "(the real-time DDS server is not built yet)");
+
+  try {
+    // The file first, then the command line over it.
+    const daemon::DaemonConfig cli = c;
+    if (!config_file.empty()) daemon::load_config(config_file, c);
+    if (domain->count()) c.server.domain = cli.server.domain;
+    if (sim_id->count()) c.server.sim_id = cli.server.sim_id;
+    if (rate->count()) c.server.rates.physics = cli.server.rates.physics;
+    if (publish->count()) c.server.rates.publish = cli.server.rates.publish;
+    if (rtf->count()) c.server.rates.real_time_factor = cli.server.rates.real_time_factor;
+    if (level->count()) c.log_level = cli.log_level;
+    if (log_file->count()) c.log_file = cli.log_file;
+    if (!o.scene.empty()) c.scene = o.scene;
+    daemon::check_config(c);
+    daemon::setup_logging(c);
+  } catch (const std::exception& e) {
+    std::cerr << "ladderd: " << e.what() << "\n";
     return 2;
   }
-  if (o.scene.empty() || o.duration <= 0) {
-    spdlog::error("--offline needs --scene FILE and --duration S (seconds > 0); see --help");
+
+  if (offline) {
+    if (c.scene.empty() || o.duration <= 0) {
+      spdlog::error("--offline needs --scene FILE and --duration S (seconds > 0); see --help");
+      return 2;
+    }
+    o.scene = c.scene;
+    o.progress = !quiet;
+    return daemon::run_offline(o);
+  }
+
+  scene::Scene first;
+  try {
+    first = daemon::first_scene(c, o.overrides);
+  } catch (const scene::SceneError& e) {
+    spdlog::error("{}", e.what());
     return 2;
   }
-  o.progress = !quiet;
-  return ladder::daemon::run_offline(o);
+  static std::atomic<bool> stop{false};
+  daemon::catch_stop_signals(stop);
+  transport::use_default_config(transport::kDefaultCycloneConfig);
+  try {
+    const int rc = daemon::run_server(c.server, first, stop);
+    daemon::log_stop_reason();
+    return rc;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
 }

@@ -166,8 +166,13 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     world_.connect(particle(k - 1, c), particle(k, c));
   }
   world_.finalize();
+  set_options(options);
+}
+
+void Ladder::set_options(const core::Options& options) {
+  world_.set_options(options);
   // A flip-flop may happen once |s| is below this; the far corners are then within ~tolerance of each other.
-  s_detect_ = 2 * std::max(options.tolerance, 1e-15) / L;
+  s_detect_ = 2 * std::max(options.tolerance, 1e-15) / spec_.length;
 }
 
 bool Ladder::held() const { return spec_.top == Top::Held && world_.is_kinematic(0); }
@@ -247,6 +252,7 @@ void Ladder::step_guarded(double h, int depth) {
 }
 
 void Ladder::advance(double h) {
+  apply_grip(h);
   if (!spec_.logic) {
     step_guarded(h, 0);
     return;
@@ -479,6 +485,41 @@ void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double 
   check_block(block);
   if (!(duration > 0) || !std::isfinite(duration)) throw std::invalid_argument("push: the duration must be positive");
   world_.add_force(block, local_point, force, time() + duration);
+}
+
+void Ladder::grab(int block, const Vec2& local_point, const Vec2& target, double stiffness) {
+  check_block(block);
+  if (block == 0 && held()) throw std::invalid_argument("block 0 is held by the hand; grab another block");
+  if (!std::isfinite(stiffness) || stiffness < 0)
+    throw std::invalid_argument("grab: the stiffness must be >= 0 (0 for the default)");
+  grip_ = {block, local_point, target, stiffness, 0};
+}
+
+void Ladder::drag(const Vec2& target) {
+  if (grip_.block < 0) throw std::invalid_argument("nothing is grabbed; grab a block first");
+  grip_.target = target;
+}
+
+void Ladder::release() {
+  if (grip_.block < 0) throw std::invalid_argument("nothing is grabbed");
+  grip_ = {};
+}
+
+// The spring-damper of the grip as a force held over the next step. With the block's mass m, natural frequency
+// w and critical damping c = 2 m w; an explicit step of a spring is stable while w h < 2, and 0.2 keeps it
+// accurate. A user-given stiffness is capped by the same bound (the chain below only adds mass, so the block
+// alone is the stiffest case).
+void Ladder::apply_grip(double h) {
+  if (grip_.block < 0) return;
+  const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[grip_.block];
+  const double w_max = 0.2 / h;
+  const double w = std::min(grip_.stiffness > 0 ? std::sqrt(grip_.stiffness / m) : 100.0, w_max);
+  const double k = m * w * w, c = 2 * m * w;
+  const int part = grip_.block;
+  const Vec2 r = world_.part_rotation(part) * grip_.local;
+  const Vec2 p = world_.part_position(part) + r;
+  const Vec2 v = world_.part_velocity(part) + world_.part_omega(part) * Vec2(-r.y(), r.x());
+  world_.add_force(part, grip_.local, k * (grip_.target - p) - c * v, time() + h);
 }
 
 std::vector<Ribbon> Ladder::ribbons() const {

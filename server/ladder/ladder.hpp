@@ -109,6 +109,22 @@ class Ladder {
   void join_hinge(int k);
   double poke(int block, const Vec2& point, const Vec2& impulse);  // impulse at a world point; returns dKE
   void push(int block, const Vec2& local_point, const Vec2& force, double duration);
+  // A user's hand: the point `local_point` of `block` (in the block's frame) is pulled toward the world point
+  // `target` by a spring-damper. stiffness <= 0 picks a critically damped spring of natural frequency 100 rad/s
+  // for the block alone (capped at 0.2 / dt, so an explicit step stays stable). One grip at a time: a new grab
+  // replaces the last. The force is evaluated at the start of each step and held over it.
+  void grab(int block, const Vec2& local_point, const Vec2& target, double stiffness);
+  void drag(const Vec2& target);  // moves the grip's target
+  void release();
+  struct Grip {
+    int block = -1;
+    Vec2 local{0, 0}, target{0, 0};
+    double stiffness = 0;  // [N/m]; 0 = the default, fixed at the first step
+    double damping = 0;    // [N s/m]
+  };
+  const Grip* grip() const { return grip_.block >= 0 ? &grip_ : nullptr; }
+  // Changes the engine options live (the caller validates them).
+  void set_options(const core::Options& options);
 
   // --- state ---
   const LadderSpec& spec() const { return spec_; }
@@ -141,6 +157,7 @@ class Ladder {
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
   void step_guarded(double h, int depth);
+  void apply_grip(double h);
 
   LadderSpec spec_;
   core::World world_;
@@ -151,6 +168,7 @@ class Ladder {
   std::vector<Event> events_;
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
+  Grip grip_;
 };
 
 }  // namespace ladder::model

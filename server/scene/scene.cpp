@@ -670,6 +670,48 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
   return s;
 }
 
+bool is_live_key(std::string_view key) {
+  const std::string_view table = table_of(key);
+  return find_key(key) && (key == "sim.dt" || key == "sim.integrator" || key == "sim.gravity" || table == "solver" ||
+                           table == "damping");
+}
+
+Scene with_live_setting(const Scene& scene, const std::string& setting) {
+  toml::table root;
+  Scene s = scene;
+  try {
+    const Origins origins = apply_overrides(root, {setting});
+    const std::string key = origins.begin()->first;
+    if (!is_live_key(key))
+      throw SceneError("--set " + setting + ": " + key +
+                       " cannot change while the ladder runs (live keys: sim.dt, sim.integrator, sim.gravity, "
+                       "solver.*, damping.*); set it in the scene and reset");
+    read_options(Reader(root, scene.source, origins), s);
+  } catch (const SceneError& e) {
+    const std::string_view what = e.what();
+    throw SceneError(std::string(what.starts_with("--set ") ? what.substr(6) : what));
+  }
+  return s;
+}
+
+std::string live_settings(const Scene& s) {
+  const core::Options& o = s.options;
+  std::string out;
+  const auto line = [&](std::string_view key, const std::string& value) {
+    out += std::string(key) + "=" + value + "\n";
+  };
+  line("sim.dt", format_number(s.dt));
+  line("sim.integrator", core::to_string(o.integrator));
+  line("sim.gravity", "[" + format_number(o.gravity.x()) + ", " + format_number(o.gravity.y()) + "]");
+  line("solver.kind", core::to_string(o.solver));
+  line("solver.tolerance", format_number(o.tolerance));
+  line("solver.max_iterations", std::to_string(o.max_iterations));
+  line("damping.linear", format_number(o.linear_damping));
+  line("damping.angular", format_number(o.angular_damping));
+  line("damping.hinge", format_number(o.hinge_friction));
+  return out;
+}
+
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
   return parse_scene(read_file(path), path, overrides);
 }

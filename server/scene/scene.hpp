@@ -49,6 +49,15 @@ Scene load_scene(const std::string& path, const std::vector<std::string>& overri
 Scene parse_scene(std::string_view toml_text, const std::string& source_name,
                   const std::vector<std::string>& overrides = {});
 
+// The keys that can change while a simulation runs: sim.dt, sim.integrator, sim.gravity, solver.* and damping.*.
+bool is_live_key(std::string_view key);
+// A copy of `scene` with one live setting "key=value" applied, checked exactly as --set checks it. Throws
+// SceneError ("key=value: why") for a bad value, an unknown key, or a key that is not live (the ladder's shape
+// and the initial state are fixed once built: change them with --set and reset).
+Scene with_live_setting(const Scene& scene, const std::string& setting);
+// Every live setting's current value, one "key=value" line each.
+std::string live_settings(const Scene& scene);
+
 // One line per key, "key  type  description (range)", for --help.
 std::string keys_help();
 

@@ -27,6 +27,12 @@ void Simulation::apply(const TimedCommand& c) {
   }
 }
 
+void Simulation::set(const std::string& setting) {
+  scene_ = with_live_setting(scene_, setting);
+  dt_ = scene_.dt;
+  ladder_.set_options(scene_.options);
+}
+
 void Simulation::step() {
   // A command is due when its time is reached by the start of this step (half a step of slack for rounding).
   const auto& timeline = scene_.timeline;

@@ -26,6 +26,8 @@ class Simulation {
   void step();
   // Applies a command now. Throws std::invalid_argument with the reason when it cannot be done; then nothing changed.
   void apply(const TimedCommand& command);
+  // Applies a live setting "key=value" (see with_live_setting); throws SceneError, and then nothing changed.
+  void set(const std::string& setting);
 
   double time() const { return ladder_.time(); }
   double dt() const { return dt_; }

@@ -143,11 +143,41 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --set sim.dt=nan", "sim.dt"},
                         Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json", "cannot write"},
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
-                        Case{scene + " --duration 1", "--offline"}}) {
+                        // Server mode: every check comes before DDS is touched.
+                        Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
+                        Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be > 0 and at most"},
+                        Case{scene + " --sim-id 'a b'", "server.sim_id 'a b' may hold only"},
+                        Case{scene + " --set ladder.blocks=0", "ladder.blocks"},
+                        Case{scene + " --domain 999", "--domain"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
   }
+}
+
+// A bad configuration file is refused with the position of the offending value, before anything starts.
+TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
+  struct Case { std::string text, words; };
+  for (const Case& c : {Case{"[server]\nphysics_rate = -5\n", ":2:16: server.physics_rate must be > 0"},
+                        Case{"[server]\nrate = 5\n", ":2:1: unknown key server.rate"},
+                        Case{"[server]\ndomain = \"zero\"\n", ":2:10: server.domain must be an integer"},
+                        Case{"[commands]\nqueue = 0\n", ":2:9: commands.queue must be from 1 to 1000000"},
+                        Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
+                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be > 0 and at most"},
+                        Case{"[server\n", ":1:8: "}}) {
+    std::ofstream(path("ladderd.toml")) << c.text;
+    const Result r = ladderd("--config " + path("ladderd.toml"));
+    EXPECT_EQ(r.code, 2) << c.text << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.words), std::string::npos) << c.text << "\n" << r.output;
+  }
+}
+
+// The shipped configuration is valid (it only restates the defaults): checked without starting the server.
+TEST_F(Offline, ShippedConfigIsValid) {
+  const Result r = ladderd("--config " + std::string(LADDER_SOURCE_DIR) + "/config/ladderd.toml --rtf -1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.output.find("ladderd.toml"), std::string::npos) << r.output;  // refused for --rtf, not the file
+  EXPECT_NE(r.output.find("server.real_time_factor"), std::string::npos) << r.output;
 }
 
 TEST_F(Offline, KeysListsEverySceneKey) {

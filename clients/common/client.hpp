@@ -1,0 +1,129 @@
+// A ladder client over DDS: sends commands to one ladderd (by sim id) and keeps what it publishes. Used by
+// ladderctl, ladder-view and the integration tests. Single-threaded: every call reads DDS in the caller's thread.
+#pragma once
+
+#include "ladder.h"
+#include "transport/dds.hpp"
+#include "transport/topics.hpp"
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ladder::client {
+
+using Millis = std::chrono::milliseconds;
+
+struct Ack {
+  std::uint64_t command_id = 0;
+  bool accepted = false;
+  std::string reason;
+  double sim_time = 0;
+  std::uint64_t step = 0;
+};
+
+struct Event {
+  std::uint64_t seq = 0;
+  double t = 0;
+  std::string kind;
+  int hinge = 0;
+  double energy_removed = 0;
+  std::string detail;
+};
+
+struct State {
+  std::uint32_t generation = 0;
+  std::uint64_t seq = 0, step = 0;
+  double sim_time = 0, energy = 0;
+  bool paused = false;
+  std::vector<ladder_msg_Pose> blocks;
+  std::vector<ladder_msg_Hinge> hinges;
+  int grabbed_block = -1;
+  double grab_target_x = 0, grab_target_y = 0;
+};
+
+struct SceneInfo {
+  std::uint32_t generation = 0;
+  std::string scene_name, description, server_version, top, options;
+  std::uint32_t blocks = 0;
+  double length = 0, thickness = 0, hinge_inset = 0, dt = 0;
+  double physics_rate = 0, publish_rate = 0, real_time_factor = 0;
+  std::vector<double> masses;
+};
+
+// Command builders: each fills the fields its kind uses.
+namespace cmd {
+ladder_msg_Command make(ladder_msg_CommandKind kind);
+ladder_msg_Command tip();
+ladder_msg_Command poke(int block, double jx, double jy);                       // at the block's centre
+ladder_msg_Command poke_at(int block, double jx, double jy, double px, double py);  // at a world point
+ladder_msg_Command push(int block, double fx, double fy, double duration, double lx = 0, double ly = 0);
+ladder_msg_Command grab(int block, double tx, double ty, double lx = 0, double ly = 0, double stiffness = 0);
+ladder_msg_Command drag(double tx, double ty);
+ladder_msg_Command release();
+ladder_msg_Command break_hinge(int hinge);
+ladder_msg_Command join_hinge(int hinge);
+ladder_msg_Command pause();
+ladder_msg_Command resume();
+ladder_msg_Command step(std::uint32_t count);
+ladder_msg_Command reset();
+ladder_msg_Command set(const std::string& key_value);
+ladder_msg_Command load(const std::string& scene);
+}  // namespace cmd
+
+class Client {
+ public:
+  // client_id: how the server's log and acks name this client; empty = "<host>-<pid>".
+  Client(int domain, std::string sim_id, std::string client_id = {});
+
+  // Waits until the server takes our commands and publishes to us; false at the timeout.
+  bool wait_for_server(Millis timeout);
+  // Sends a command (sim id, client id and a fresh command id filled in) and returns its id.
+  std::uint64_t send(ladder_msg_Command c);
+  // The ack of command `id`, waiting up to `timeout`.
+  std::optional<Ack> wait_ack(std::uint64_t id, Millis timeout);
+  // send + wait_ack; throws std::runtime_error at the timeout.
+  Ack call(const ladder_msg_Command& c, Millis timeout = Millis(5000));
+
+  // Waits for the first State (newer than what was seen when called) that satisfies pred.
+  std::optional<State> wait_state(const std::function<bool(const State&)>& pred, Millis timeout);
+  std::optional<SceneInfo> wait_scene_info(Millis timeout);
+  std::optional<ladder_msg_Stats> wait_stats(const std::function<bool(const ladder_msg_Stats&)>& pred, Millis timeout);
+  // Reads what has arrived, without waiting.
+  void poll();
+  // Events received so far, in order (moved out).
+  std::vector<Event> take_events();
+  const std::optional<State>& latest_state() const { return state_; }
+  const std::optional<SceneInfo>& scene_info() const { return scene_; }
+  std::size_t acks_received() const { return acks_received_; }
+  const std::string& client_id() const { return client_id_; }
+
+ private:
+  bool wait(Millis timeout, const std::function<bool()>& done);
+
+  std::string sim_id_, client_id_;
+  transport::Entity participant_;
+  transport::Topics topics_;
+  transport::Writer<ladder_msg_Command> command_w_;
+  transport::Reader<ladder_msg_CommandAck> ack_r_;
+  transport::Reader<ladder_msg_State> state_r_;
+  transport::Reader<ladder_msg_SceneInfo> scene_r_;
+  transport::Reader<ladder_msg_Event> event_r_;
+  transport::Reader<ladder_msg_Stats> stats_r_;
+  transport::Waiter waiter_;
+  std::uint64_t next_id_ = 1;
+  std::map<std::uint64_t, Ack> acks_;
+  std::size_t acks_received_ = 0;
+  std::vector<Event> events_;
+  std::optional<State> state_;
+  std::uint64_t state_count_ = 0;
+  std::optional<SceneInfo> scene_;
+  std::optional<ladder_msg_Stats> stats_;
+  std::uint64_t stats_count_ = 0;
+};
+
+}  // namespace ladder::client

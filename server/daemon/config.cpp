@@ -1,0 +1,160 @@
+#include "daemon/config.hpp"
+
+#include <toml++/toml.h>
+
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <string_view>
+#include <algorithm>
+#include <cctype>
+
+namespace ladder::daemon {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string where(const std::string& file, const toml::source_region& r) {
+  return file + ":" + std::to_string(r.begin.line) + ":" + std::to_string(r.begin.column);
+}
+
+// One key of the file: its name, and how to read a node into the config (throws std::invalid_argument with why).
+struct Key {
+  std::string_view name;  // "table.key"
+  std::function<void(const toml::node&, DaemonConfig&, const fs::path& dir)> read;
+};
+
+double number(const toml::node& n) {
+  if (const auto* i = n.as_integer()) return static_cast<double>(i->get());
+  if (const auto* f = n.as_floating_point()) return f->get();
+  throw std::invalid_argument("must be a number");
+}
+
+long long integer(const toml::node& n, long long lo, long long hi) {
+  const auto* i = n.as_integer();
+  if (!i) throw std::invalid_argument("must be an integer");
+  if (i->get() < lo || i->get() > hi)
+    throw std::invalid_argument("must be from " + std::to_string(lo) + " to " + std::to_string(hi));
+  return i->get();
+}
+
+std::string text(const toml::node& n) {
+  const auto* s = n.as_string();
+  if (!s) throw std::invalid_argument("must be a string");
+  return s->get();
+}
+
+std::string path_in(const toml::node& n, const fs::path& dir) {
+  const std::string t = text(n);
+  return t.empty() || fs::path(t).is_absolute() ? t : (dir / t).lexically_normal().string();
+}
+
+template <class F>
+Key number_key(std::string_view name, F set) {
+  return {name, [set](const toml::node& n, DaemonConfig& c, const fs::path&) { set(c, number(n)); }};
+}
+template <class F>
+Key integer_key(std::string_view name, long long lo, long long hi, F set) {
+  return {name, [=](const toml::node& n, DaemonConfig& c, const fs::path&) { set(c, integer(n, lo, hi)); }};
+}
+
+const std::vector<Key>& keys() {
+  static const std::vector<Key> k{
+      {"server.sim_id", [](const toml::node& n, DaemonConfig& c, const fs::path&) { c.server.sim_id = text(n); }},
+      integer_key("server.domain", 0, 232, [](DaemonConfig& c, long long v) { c.server.domain = static_cast<int>(v); }),
+      {"server.scene", [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.scene = path_in(n, d); }},
+      {"server.scenes_dir",
+       [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.server.scenes_dir = path_in(n, d); }},
+      number_key("server.physics_rate", [](DaemonConfig& c, double v) { c.server.rates.physics = v; }),
+      number_key("server.publish_rate", [](DaemonConfig& c, double v) { c.server.rates.publish = v; }),
+      number_key("server.stats_rate", [](DaemonConfig& c, double v) { c.server.stats_rate = v; }),
+      number_key("server.real_time_factor", [](DaemonConfig& c, double v) { c.server.rates.real_time_factor = v; }),
+      integer_key("commands.queue", 1, 1'000'000,
+                  [](DaemonConfig& c, long long v) { c.server.queue = static_cast<std::size_t>(v); }),
+      integer_key("commands.per_tick", 1, 100'000,
+                  [](DaemonConfig& c, long long v) { c.server.per_tick = static_cast<std::size_t>(v); }),
+      number_key("commands.max_impulse", [](DaemonConfig& c, double v) { c.server.limits.max_impulse = v; }),
+      number_key("commands.max_force", [](DaemonConfig& c, double v) { c.server.limits.max_force = v; }),
+      number_key("commands.max_duration", [](DaemonConfig& c, double v) { c.server.limits.max_duration = v; }),
+      number_key("commands.reach", [](DaemonConfig& c, double v) { c.server.limits.reach = v; }),
+      integer_key("commands.max_step_count", 1, 1'000'000'000,
+                  [](DaemonConfig& c, long long v) { c.server.limits.max_step_count = static_cast<std::uint32_t>(v); }),
+      {"log.level", [](const toml::node& n, DaemonConfig& c, const fs::path&) { c.log_level = text(n); }},
+      {"log.file", [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.log_file = path_in(n, d); }},
+  };
+  return k;
+}
+
+void positive(double v, double hi, const char* key, const char* bound = nullptr) {
+  if (!(v > 0 && v <= hi))
+    throw ConfigError(std::string(key) + " must be > 0 and at most " +
+                          (bound ? std::string(bound) : std::to_string(static_cast<long long>(hi))),
+                      key);
+}
+
+}  // namespace
+
+void check_config(const DaemonConfig& c) {
+  const ServerConfig& s = c.server;
+  if (s.sim_id.empty() || s.sim_id.size() > 64) throw ConfigError("server.sim_id must be 1 to 64 characters", "server.sim_id");
+  for (char ch : s.sim_id)
+    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_' || ch == '.'))
+      throw ConfigError("server.sim_id '" + s.sim_id + "' may hold only letters, digits, '-', '_' and '.'",
+                        "server.sim_id");
+  positive(s.rates.physics, 100'000, "server.physics_rate");
+  positive(s.rates.publish, s.rates.physics, "server.publish_rate", "server.physics_rate");
+  positive(s.stats_rate, 100, "server.stats_rate");
+  if (!(s.rates.real_time_factor >= 0 && s.rates.real_time_factor <= 1000))
+    throw ConfigError("server.real_time_factor must be from 0 (as fast as possible) to 1000", "server.real_time_factor");
+  positive(s.limits.max_impulse, 1e6, "commands.max_impulse");
+  positive(s.limits.max_force, 1e9, "commands.max_force");
+  positive(s.limits.max_duration, 1e9, "commands.max_duration");
+  positive(s.limits.reach, 1e9, "commands.reach");
+  static constexpr std::array levels{"trace", "debug", "info", "warn", "error", "off"};
+  if (std::find(levels.begin(), levels.end(), c.log_level) == levels.end())
+    throw ConfigError("log.level must be trace, debug, info, warn, error or off, not '" + c.log_level + "'", "log.level");
+}
+
+void load_config(const std::string& path, DaemonConfig& config) {
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    if (e.source().begin.line == 0) throw ConfigError(path + ": cannot read the configuration file");
+    throw ConfigError(where(path, e.source()) + ": " + std::string(e.description()));
+  }
+  const fs::path dir = fs::path(path).parent_path();
+  DaemonConfig c = config;
+  for (auto&& [table_name, table_node] : root) {
+    const auto* table = table_node.as_table();
+    if (!table)
+      throw ConfigError(where(path, table_node.source()) + ": '" + std::string(table_name.str()) +
+                        "' must be a table: [server], [commands] or [log]");
+    for (auto&& [key, node] : *table) {
+      const std::string name = std::string(table_name.str()) + "." + std::string(key.str());
+      const auto it = std::find_if(keys().begin(), keys().end(), [&](const Key& k) { return k.name == name; });
+      if (it == keys().end()) {
+        std::string known;
+        for (const Key& k : keys()) known += (known.empty() ? "" : ", ") + std::string(k.name);
+        throw ConfigError(where(path, key.source()) + ": unknown key " + name + " (keys: " + known + ")");
+      }
+      try {
+        it->read(node, c, dir);
+      } catch (const std::invalid_argument& e) {
+        throw ConfigError(where(path, node.source()) + ": " + name + " " + e.what(), name);
+      }
+    }
+  }
+  try {
+    check_config(c);
+  } catch (const ConfigError& e) {
+    const toml::node* n = root.at_path(e.key()).node();
+    if (!n) throw ConfigError(path + ": " + e.what(), e.key());  // a default is at fault: no position to give
+    throw ConfigError(where(path, n->source()) + ": " + e.what(), e.key());
+  }
+  config = c;
+}
+
+}  // namespace ladder::daemon

@@ -1,0 +1,556 @@
+#include "daemon/server.hpp"
+
+#include "daemon/handoff.hpp"
+#include "transport/dds.hpp"
+#include "transport/topics.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <sys/prctl.h>
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <tuple>
+#include <vector>
+
+namespace ladder::daemon {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using transport::copy_text;
+using transport::text_of;
+
+constexpr const char* kVersion = "ladderd 0.2.0";
+
+double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// What the physics thread hands the I/O thread (besides the latest state, which goes through a Latest buffer).
+struct EventOut {
+  double t = 0;
+  std::string kind, detail;
+  int hinge = 0;
+  double energy_removed = 0;
+};
+struct SceneOut {
+  std::uint32_t generation = 0;
+  std::string name, description, top, options;
+  int blocks = 0;
+  double length = 0, thickness = 0, inset = 0, dt = 0;
+  std::vector<double> masses;
+  Rates rates;
+};
+struct Outbox {
+  std::vector<ladder_msg_CommandAck> acks;
+  std::vector<EventOut> events;
+  std::vector<ladder_msg_Stats> stats;
+  std::vector<SceneOut> scenes;
+};
+
+// Shared between the two threads. The physics thread only ever holds the locks for a swap or a push.
+struct Shared {
+  explicit Shared(const ServerConfig& c) : config(c) {}
+  const ServerConfig& config;
+  std::mutex inbox_mutex;
+  std::deque<ladder_msg_Command> inbox;
+  std::mutex outbox_mutex;
+  Outbox outbox;
+  Latest<StateFrame> state;
+  std::atomic<std::uint64_t> received{0}, rate_limited{0}, states_published{0}, states_dropped{0},
+      events_published{0};
+  std::atomic<bool> physics_done{false};
+  std::atomic<bool> abort{false};  // the I/O thread failed: the physics thread stops too
+  const transport::Waiter* waiter = nullptr;  // to wake the I/O thread
+};
+
+// Percentiles of a window of samples [us]; the window is cleared.
+struct Percentiles {
+  double p50 = 0, p99 = 0, max = 0;
+};
+Percentiles percentiles(std::vector<double>& v) {
+  Percentiles p;
+  if (v.empty()) return p;
+  const auto at = [&](double q) {
+    const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(v.size() - 1));
+    std::nth_element(v.begin(), v.begin() + k, v.end());
+    return v[static_cast<std::size_t>(k)];
+  };
+  p.p50 = at(0.5);
+  p.p99 = at(0.99);
+  p.max = *std::max_element(v.begin(), v.end());
+  v.clear();
+  return p;
+}
+
+void fill_frame(const Session& s, StateFrame& f) {
+  const model::Ladder& l = s.sim().ladder();
+  f.generation = s.generation();
+  f.step = s.sim().steps();
+  f.t = s.sim().time();
+  f.paused = s.paused();
+  f.energy = l.energy();
+  const auto n = static_cast<std::size_t>(l.blocks());
+  f.blocks.resize(n);
+  f.hinges.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int b = static_cast<int>(i);
+    const core::Vec2 c = l.block_centre(b);
+    f.blocks[i] = {c.x(), c.y(), l.block_angle(b)};
+    const model::HingeInfo& h = l.hinges()[i];
+    f.hinges[i] = {static_cast<std::uint8_t>(h.corner),
+                   h.status == model::HingeStatus::Hinged   ? ladder_msg_HINGED
+                   : h.status == model::HingeStatus::Locked ? ladder_msg_LOCKED
+                                                            : ladder_msg_BROKEN,
+                   static_cast<std::uint32_t>(h.flips)};
+  }
+  const model::Ladder::Grip* g = l.grip();
+  f.grabbed = g ? g->block : -1;
+  f.target = g ? g->target : core::Vec2::Zero();
+}
+
+SceneOut scene_out(const Session& s) {
+  const scene::Scene& sc = s.sim().scene();
+  const model::LadderSpec& l = sc.ladder;
+  SceneOut o;
+  o.generation = s.generation();
+  o.name = sc.name;
+  o.description = sc.description;
+  o.top = l.top == model::Top::Held ? "held" : l.top == model::Top::Pinned ? "pinned" : "free";
+  o.options = scene::live_settings(sc);
+  o.blocks = l.blocks;
+  o.length = l.length;
+  o.thickness = l.thickness;
+  o.inset = l.hinge_inset;
+  o.dt = sc.dt;
+  o.masses = l.masses.empty() ? std::vector<double>(static_cast<std::size_t>(l.blocks), l.mass) : l.masses;
+  o.rates = s.rates();
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The physics thread
+
+class Physics {
+ public:
+  Physics(Shared& shared, const scene::Scene& scene)
+      : sh_(shared), session_(scene, shared.config.scenes_dir, shared.config.limits, shared.config.rates) {}
+
+  void run(const std::atomic<bool>& stop);
+
+ private:
+  void take_commands();
+  void advance(double period, Clock::time_point tick_start);
+  void collect_events();
+  void publish_state();
+  void publish_stats(Clock::time_point now);
+  void run_step();
+  void push_scene();
+  template <class F>
+  void with_outbox(F&& f) {
+    std::lock_guard lock(sh_.outbox_mutex);
+    f(sh_.outbox);
+  }
+
+  Shared& sh_;
+  Session session_;
+  double debt_ = 0;  // sim time owed to the real-time clock [s]
+  std::vector<double> step_us_, late_us_;
+  std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;
+  double sim_at_last_stats_ = 0;
+  Clock::time_point last_stats_{}, last_publish_{};
+  std::uint32_t scene_generation_ = 0;
+  Rates scene_rates_{};
+  bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
+};
+
+void Physics::push_scene() {
+  scene_generation_ = session_.generation();
+  scene_rates_ = session_.rates();
+  with_outbox([&](Outbox& o) { o.scenes.push_back(scene_out(session_)); });
+}
+
+void Physics::take_commands() {
+  std::vector<ladder_msg_Command> batch;
+  {
+    std::lock_guard lock(sh_.inbox_mutex);
+    const std::size_t n = std::min(sh_.inbox.size(), sh_.config.per_tick);
+    batch.assign(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
+    sh_.inbox.erase(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
+  }
+  if (batch.empty()) return;
+  dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
+  // One deterministic order for commands that arrive together, whatever the network did: client, then id.
+  std::stable_sort(batch.begin(), batch.end(), [](const ladder_msg_Command& a, const ladder_msg_Command& b) {
+    const int c = std::strncmp(a.client_id, b.client_id, sizeof a.client_id);
+    return c < 0 || (c == 0 && a.command_id < b.command_id);
+  });
+  std::vector<ladder_msg_CommandAck> acks(batch.size());
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    const ladder_msg_Command& c = batch[i];
+    const double t = session_.sim().time();
+    const std::uint64_t step = session_.sim().steps();
+    const Outcome r = session_.apply(c);
+    ladder_msg_CommandAck& a = acks[i];
+    std::memcpy(a.sim_id, c.sim_id, sizeof a.sim_id);
+    std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
+    a.command_id = c.command_id;
+    a.accepted = r.accepted;
+    copy_text(a.reason, r.reason);
+    // A command that restarted the scene took effect at the new scene's start.
+    a.sim_time = session_.generation() != scene_generation_ ? session_.sim().time() : t;
+    a.step = session_.generation() != scene_generation_ ? session_.sim().steps() : step;
+    (r.accepted ? accepted_ : refused_)++;
+    if (r.accepted)
+      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
+    else
+      spdlog::info("{} {} from {}: refused: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
+    if (session_.generation() != scene_generation_ ||
+        std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
+            std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
+      if (session_.generation() != scene_generation_) {
+        debt_ = 0;
+        spdlog::info("scene '{}' started ({} blocks)", session_.sim().scene().name, session_.sim().ladder().blocks());
+      }
+      push_scene();
+    }
+  }
+  with_outbox([&](Outbox& o) { o.acks.insert(o.acks.end(), acks.begin(), acks.end()); });
+}
+
+void Physics::run_step() {
+  dirty_ = true;
+  const auto t0 = Clock::now();
+  try {
+    session_.step();
+  } catch (const std::runtime_error& e) {
+    spdlog::error("step failed, simulation paused: {}", e.what());
+    with_outbox([&](Outbox& o) { o.events.push_back({session_.sim().time(), "solver_failure", e.what(), 0, 0}); });
+    debt_ = 0;
+  }
+  step_us_.push_back(1e6 * seconds(Clock::now() - t0));
+}
+
+// Runs the steps this tick owes: real time times the real-time factor, or pending single steps while paused.
+// With a real-time factor of 0 it steps for one tick period of wall time. A backlog beyond two ticks' worth is
+// dropped rather than caught up, so an overloaded server runs slow instead of freezing.
+void Physics::advance(double period, Clock::time_point tick_start) {
+  const double dt = session_.sim().dt();
+  const auto budget = tick_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
+  if (session_.paused()) {
+    debt_ = 0;
+    while (session_.pending_steps() > 0 && session_.paused()) {
+      session_.take_pending_step();
+      run_step();
+      if (Clock::now() >= budget) break;
+    }
+    return;
+  }
+  const double rtf = session_.rates().real_time_factor;
+  if (rtf == 0) {
+    do run_step();
+    while (!session_.paused() && Clock::now() < budget);
+    return;
+  }
+  debt_ += rtf * period;
+  while (debt_ >= 0.5 * dt && !session_.paused()) {
+    run_step();
+    debt_ -= dt;
+    if (Clock::now() >= budget + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period)))
+      break;
+  }
+  debt_ = std::min(debt_, 2 * rtf * period);
+}
+
+void Physics::collect_events() {
+  std::vector<EventOut> out;
+  for (const model::Event& e : session_.sim().take_events())
+    out.push_back({e.t, model::to_string(e.kind), e.detail, e.hinge, e.energy_removed});
+  for (const scene::Refusal& r : session_.sim().take_refusals())
+    out.push_back({r.t, "command_refused", r.where + ": " + r.reason, 0, 0});
+  if (out.empty()) return;
+  for (const EventOut& e : out)
+    spdlog::info("t = {:.6f} s: {} at hinge {}{}{}", e.t, e.kind, e.hinge, e.detail.empty() ? "" : ": ", e.detail);
+  with_outbox([&](Outbox& o) { o.events.insert(o.events.end(), out.begin(), out.end()); });
+}
+
+void Physics::publish_state() {
+  dirty_ = false;
+  fill_frame(session_, sh_.state.back());
+  if (sh_.state.publish()) sh_.states_dropped.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Physics::publish_stats(Clock::time_point now) {
+  ladder_msg_Stats s{};
+  const scene::Simulation& sim = session_.sim();
+  copy_text(s.sim_id, sh_.config.sim_id);
+  s.sim_time = sim.time();
+  s.steps = sim.steps();
+  s.window = seconds(now - last_stats_);
+  const Percentiles step = percentiles(step_us_), late = percentiles(late_us_);
+  s.step_p50_us = step.p50;
+  s.step_p99_us = step.p99;
+  s.step_max_us = step.max;
+  s.late_p50_us = late.p50;
+  s.late_p99_us = late.p99;
+  s.late_max_us = late.max;
+  s.real_time_factor = s.window > 0 ? std::max(0.0, sim.time() - sim_at_last_stats_) / s.window : 0;
+  s.missed_deadlines = missed_;
+  s.solver_iterations = static_cast<std::uint32_t>(sim.ladder().world().last_step().iterations);
+  s.solver_residual = sim.ladder().world().last_step().residual;
+  s.energy = sim.ladder().energy();
+  s.max_hinge_error = sim.max_hinge_error();
+  s.commands_received = sh_.received.load();
+  s.commands_accepted = accepted_;
+  s.commands_refused = refused_;
+  s.commands_rate_limited = sh_.rate_limited.load();
+  s.states_published = sh_.states_published.load();
+  s.states_dropped = sh_.states_dropped.load();
+  s.events_published = sh_.events_published.load();
+  with_outbox([&](Outbox& o) { o.stats.push_back(s); });
+  last_stats_ = now;
+  sim_at_last_stats_ = sim.time();
+}
+
+void Physics::run(const std::atomic<bool>& stop) {
+  prctl(PR_SET_TIMERSLACK, 1UL);  // wake within microseconds of the deadline, not the default 50 us
+  const Rates& rates = session_.rates();
+  const double period = 1.0 / rates.physics;
+  const auto period_d = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
+  auto deadline = Clock::now();
+  last_stats_ = last_publish_ = deadline;
+  push_scene();
+  publish_state();
+  while (!stop.load(std::memory_order_relaxed) && !sh_.abort.load(std::memory_order_relaxed)) {
+    const auto start = Clock::now();
+    if (rates.real_time_factor > 0 || session_.paused()) {
+      late_us_.push_back(1e6 * seconds(start - deadline));
+      if (start - deadline > period_d) {  // more than a whole tick late: count it and start afresh
+        ++missed_;
+        deadline = start;
+      }
+    } else {
+      deadline = start;
+    }
+    take_commands();
+    advance(period, start);
+    collect_events();
+    const auto now = Clock::now();
+    if (dirty_ && seconds(now - last_publish_) >= 1.0 / rates.publish - 0.5 * period) {
+      publish_state();
+      last_publish_ = now;
+    }
+    if (seconds(now - last_stats_) >= 1.0 / sh_.config.stats_rate) publish_stats(now);
+    sh_.waiter->wake();
+    deadline += period_d;
+    if (rates.real_time_factor > 0 || session_.paused()) {
+      const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline.time_since_epoch()).count();
+      const timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
+      while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+      }
+    }
+  }
+  publish_state();
+  sh_.physics_done = true;
+  sh_.waiter->wake();
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The I/O thread: DDS in and out.
+
+class Io {
+ public:
+  explicit Io(Shared& shared)
+      : sh_(shared),
+        participant_(transport::make_participant(static_cast<dds_domainid_t>(shared.config.domain))),
+        topics_(participant_),
+        scene_w_(participant_, topics_.scene_info, transport::Profile::SceneInfo),
+        state_w_(participant_, topics_.state, transport::Profile::State),
+        ack_w_(participant_, topics_.ack, transport::Profile::CommandAck),
+        event_w_(participant_, topics_.event, transport::Profile::Event),
+        stats_w_(participant_, topics_.stats, transport::Profile::Stats),
+        command_r_(participant_, topics_.command, transport::Profile::Command),
+        waiter_(participant_) {
+    waiter_.attach(command_r_.entity());
+    sh_.waiter = &waiter_;
+  }
+
+  // Until the physics thread has finished and everything it handed over is written.
+  void run();
+
+ private:
+  void take_commands();
+  void write_outbox();
+  void write_state();
+  void refuse(const ladder_msg_Command& c, const std::string& reason);
+
+  Shared& sh_;
+  transport::Entity participant_;  // first: destroyed last
+  transport::Topics topics_;
+  transport::Writer<ladder_msg_SceneInfo> scene_w_;
+  transport::Writer<ladder_msg_State> state_w_;
+  transport::Writer<ladder_msg_CommandAck> ack_w_;
+  transport::Writer<ladder_msg_Event> event_w_;
+  transport::Writer<ladder_msg_Stats> stats_w_;
+  transport::Reader<ladder_msg_Command> command_r_;
+  transport::Waiter waiter_;
+  std::uint64_t state_seq_ = 0, event_seq_ = 0;
+  std::uint32_t generation_ = 0;
+  Outbox out_;
+};
+
+void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
+  ladder_msg_CommandAck a{};
+  std::memcpy(a.sim_id, c.sim_id, sizeof a.sim_id);
+  std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
+  a.command_id = c.command_id;
+  a.accepted = false;
+  copy_text(a.reason, reason);
+  a.sim_time = -1;  // never reached the simulation
+  ack_w_.write(a);
+}
+
+void Io::take_commands() {
+  const std::string& id = sh_.config.sim_id;
+  std::vector<ladder_msg_Command> fresh;
+  command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t&) {
+    if (text_of(c.sim_id) == id) fresh.push_back(c);  // commands for other ladders on this domain are not ours
+  });
+  if (fresh.empty()) return;
+  sh_.received.fetch_add(fresh.size());
+  std::vector<const ladder_msg_Command*> over;
+  {
+    std::lock_guard lock(sh_.inbox_mutex);
+    for (const ladder_msg_Command& c : fresh) {
+      if (sh_.inbox.size() >= sh_.config.queue)
+        over.push_back(&c);
+      else
+        sh_.inbox.push_back(c);
+    }
+  }
+  if (over.empty()) return;
+  sh_.rate_limited.fetch_add(over.size());
+  spdlog::warn("rate limit: {} command(s) refused ({} already queued)", over.size(), sh_.config.queue);
+  for (const ladder_msg_Command* c : over)
+    refuse(*c, "rate limit: " + std::to_string(sh_.config.queue) + " commands are already waiting; send fewer");
+}
+
+void Io::write_outbox() {
+  {
+    std::lock_guard lock(sh_.outbox_mutex);
+    std::swap(out_, sh_.outbox);
+  }
+  for (const SceneOut& s : out_.scenes) {
+    ladder_msg_SceneInfo m{};
+    copy_text(m.sim_id, sh_.config.sim_id);
+    m.generation = generation_ = s.generation;
+    copy_text(m.scene_name, s.name);
+    copy_text(m.description, s.description);
+    copy_text(m.server_version, kVersion);
+    m.blocks = static_cast<std::uint32_t>(s.blocks);
+    m.length = s.length;
+    m.thickness = s.thickness;
+    m.hinge_inset = s.inset;
+    m.masses._buffer = const_cast<double*>(s.masses.data());
+    m.masses._length = m.masses._maximum = static_cast<std::uint32_t>(s.masses.size());
+    m.masses._release = false;
+    copy_text(m.top, s.top);
+    m.dt = s.dt;
+    m.physics_rate = s.rates.physics;
+    m.publish_rate = s.rates.publish;
+    m.real_time_factor = s.rates.real_time_factor;
+    copy_text(m.options, s.options);
+    scene_w_.write(m);
+  }
+  for (const ladder_msg_CommandAck& a : out_.acks) ack_w_.write(a);
+  for (const EventOut& e : out_.events) {
+    ladder_msg_Event m{};
+    copy_text(m.sim_id, sh_.config.sim_id);
+    m.seq = ++event_seq_;
+    m.t = e.t;
+    copy_text(m.kind, e.kind);
+    m.hinge = e.hinge;
+    m.energy_removed = e.energy_removed;
+    copy_text(m.detail, e.detail);
+    event_w_.write(m);
+  }
+  sh_.events_published.fetch_add(out_.events.size());
+  for (const ladder_msg_Stats& s : out_.stats) stats_w_.write(s);
+  out_.scenes.clear();
+  out_.acks.clear();
+  out_.events.clear();
+  out_.stats.clear();
+}
+
+void Io::write_state() {
+  const StateFrame* f = sh_.state.take();
+  if (!f) return;
+  ladder_msg_State m{};
+  copy_text(m.sim_id, sh_.config.sim_id);
+  m.generation = f->generation;
+  m.seq = ++state_seq_;
+  m.step = f->step;
+  m.sim_time = f->t;
+  m.paused = f->paused;
+  m.energy = f->energy;
+  // Borrowed buffers: DDS serialises them in write() and must not free them.
+  m.blocks._buffer = const_cast<ladder_msg_Pose*>(f->blocks.data());
+  m.blocks._length = m.blocks._maximum = static_cast<std::uint32_t>(f->blocks.size());
+  m.hinges._buffer = const_cast<ladder_msg_Hinge*>(f->hinges.data());
+  m.hinges._length = m.hinges._maximum = static_cast<std::uint32_t>(f->hinges.size());
+  m.grabbed_block = f->grabbed;
+  m.grab_target_x = f->target.x();
+  m.grab_target_y = f->target.y();
+  state_w_.write(m);
+  sh_.states_published.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Io::run() {
+  while (true) {
+    const bool done = sh_.physics_done.load();
+    waiter_.wait(std::chrono::milliseconds(5));
+    take_commands();
+    write_outbox();  // scene info before the states of its generation
+    write_state();
+    if (done) break;
+  }
+}
+
+}  // namespace
+
+int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop) {
+  Shared shared(config);
+  Io io(shared);
+  Physics physics(shared, scene);
+  spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
+               "factor {}",
+               scene.name, config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,
+               config.rates.publish, config.rates.real_time_factor);
+  std::exception_ptr physics_error;
+  std::thread physics_thread([&] {
+    try {
+      physics.run(stop);
+    } catch (...) {
+      physics_error = std::current_exception();
+      shared.physics_done = true;
+    }
+  });
+  try {
+    io.run();
+  } catch (...) {
+    shared.abort = true;  // a DDS failure on the I/O side: stop the physics thread before unwinding
+    physics_thread.join();
+    throw;
+  }
+  physics_thread.join();
+  if (physics_error) std::rethrow_exception(physics_error);
+  return 0;
+}
+
+}  // namespace ladder::daemon

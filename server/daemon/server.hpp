@@ -1,0 +1,29 @@
+// ladderd's real-time server: a physics thread that owns the session and keeps time, and an I/O thread that
+// takes commands from DDS and publishes what the physics thread hands it. The physics thread never touches DDS,
+// so a slow subscriber or a burst of commands cannot delay a step.
+#pragma once
+
+#include "daemon/session.hpp"
+
+#include <atomic>
+#include <cstddef>
+#include <string>
+
+namespace ladder::daemon {
+
+struct ServerConfig {
+  std::string sim_id = "ladder";
+  int domain = 0;
+  std::string scenes_dir;         // where load_scene looks
+  Rates rates;
+  double stats_rate = 1.0;        // Stats per wall second
+  Limits limits;
+  std::size_t queue = 1000;       // commands waiting for the physics thread; beyond it they are refused
+  std::size_t per_tick = 100;     // commands applied per tick at most
+};
+
+// Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws
+// transport::DdsError when DDS cannot be set up.
+int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop);
+
+}  // namespace ladder::daemon

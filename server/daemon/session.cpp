@@ -1,0 +1,255 @@
+#include "daemon/session.hpp"
+
+#include "transport/dds.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <string_view>
+#include <utility>
+
+namespace ladder::daemon {
+
+namespace {
+
+using core::Vec2;
+using transport::text_of;
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// Each check throws std::invalid_argument with the user-facing reason; apply() turns it into a refusal.
+void finite(double v, const char* name) {
+  if (!std::isfinite(v)) throw std::invalid_argument(std::string(name) + " is " + number(v) + ", not a finite number");
+}
+
+Vec2 vec(double x, double y, const char* name) {
+  finite(x, name);
+  finite(y, name);
+  return {x, y};
+}
+
+Vec2 bounded(double x, double y, const char* name, double limit, const char* unit, const char* key) {
+  const Vec2 v = vec(x, y, name);
+  if (v.norm() > limit)
+    throw std::invalid_argument(std::string(name) + " of " + number(v.norm()) + " " + unit + " is beyond the limit of " +
+                                number(limit) + " " + unit + " (" + key + ")");
+  return v;
+}
+
+Vec2 within_reach(double x, double y, const char* name, double reach) {
+  const Vec2 v = vec(x, y, name);
+  if (v.norm() > reach)
+    throw std::invalid_argument(std::string(name) + " is " + number(v.norm()) + " m from the origin, beyond the reach of " +
+                                number(reach) + " m (commands.reach)");
+  return v;
+}
+
+// A point on block i: `offset` from its centre must lie inside the block (1 % slack for rounding).
+void on_block(const model::Ladder& l, int i, const Vec2& offset, const char* name) {
+  const double half_diagonal = 0.5 * std::hypot(l.spec().length, l.spec().thickness);
+  if (offset.norm() > 1.01 * half_diagonal)
+    throw std::invalid_argument(std::string(name) + " is " + number(offset.norm() * 1e3) + " mm from block " +
+                                std::to_string(i) + "'s centre, outside the block (at most " +
+                                number(half_diagonal * 1e3) + " mm)");
+}
+
+scene::TimedCommand timed(const char* command) {
+  scene::TimedCommand t;
+  t.command = command;
+  return t;
+}
+
+}  // namespace
+
+const char* to_string(ladder_msg_CommandKind kind) {
+  switch (kind) {
+    case ladder_msg_TIP: return "tip";
+    case ladder_msg_POKE: return "poke";
+    case ladder_msg_PUSH: return "push";
+    case ladder_msg_GRAB: return "grab";
+    case ladder_msg_DRAG: return "drag";
+    case ladder_msg_RELEASE: return "release";
+    case ladder_msg_BREAK_HINGE: return "break";
+    case ladder_msg_JOIN_HINGE: return "join";
+    case ladder_msg_PAUSE: return "pause";
+    case ladder_msg_RESUME: return "resume";
+    case ladder_msg_STEP: return "step";
+    case ladder_msg_RESET: return "reset";
+    case ladder_msg_SET_PARAM: return "set";
+    case ladder_msg_LOAD_SCENE: return "load";
+  }
+  return "unknown";
+}
+
+Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates)
+    : scenes_dir_(std::move(scenes_dir)), limits_(limits), rates_(rates) {
+  start(scene);
+  generation_ = 0;
+}
+
+void Session::start(const scene::Scene& scene) {
+  sim_ = std::make_unique<scene::Simulation>(scene);
+  pending_steps_ = 0;
+  ++generation_;
+}
+
+void Session::step() {
+  try {
+    sim_->step();
+  } catch (const std::runtime_error&) {
+    paused_ = true;
+    pending_steps_ = 0;
+    throw;
+  }
+}
+
+Outcome Session::apply(const ladder_msg_Command& c) {
+  model::Ladder& l = sim_->ladder();
+  try {
+    switch (c.kind) {
+      case ladder_msg_TIP:
+        sim_->apply(timed("tip"));
+        break;
+      case ladder_msg_POKE: {
+        scene::TimedCommand t = timed("poke");
+        t.impulse = bounded(c.a, c.b, "the impulse", limits_.max_impulse, "N s", "commands.max_impulse");
+        l.check_block(c.block);
+        t.block = c.block;
+        if (c.has_point) {
+          t.at = vec(c.c, c.d, "the point");
+          t.has_at = true;
+          on_block(l, c.block, t.at - l.block_centre(c.block), "the point");
+        }
+        sim_->apply(t);
+        break;
+      }
+      case ladder_msg_PUSH: {
+        scene::TimedCommand t = timed("push");
+        t.force = bounded(c.a, c.b, "the force", limits_.max_force, "N", "commands.max_force");
+        t.at = vec(c.c, c.d, "the point");
+        t.has_at = true;
+        finite(c.e, "the duration");
+        if (!(c.e > 0 && c.e <= limits_.max_duration))
+          throw std::invalid_argument("the duration must be > 0 and at most " + number(limits_.max_duration) +
+                                      " s (commands.max_duration), not " + number(c.e));
+        t.duration = c.e;
+        l.check_block(c.block);
+        t.block = c.block;
+        on_block(l, c.block, t.at, "the point");
+        sim_->apply(t);
+        break;
+      }
+      case ladder_msg_GRAB: {
+        const Vec2 target = within_reach(c.a, c.b, "the target", limits_.reach);
+        const Vec2 local = vec(c.c, c.d, "the point");
+        finite(c.e, "the stiffness");
+        l.check_block(c.block);
+        on_block(l, c.block, local, "the point");
+        l.grab(c.block, local, target, c.e);
+        break;
+      }
+      case ladder_msg_DRAG:
+        l.drag(within_reach(c.a, c.b, "the target", limits_.reach));
+        break;
+      case ladder_msg_RELEASE:
+        l.release();
+        break;
+      case ladder_msg_BREAK_HINGE:
+      case ladder_msg_JOIN_HINGE: {
+        scene::TimedCommand t = timed(c.kind == ladder_msg_BREAK_HINGE ? "break" : "join");
+        t.hinge = c.hinge;
+        sim_->apply(t);
+        break;
+      }
+      case ladder_msg_PAUSE:
+        if (paused_) throw std::invalid_argument("already paused");
+        paused_ = true;
+        break;
+      case ladder_msg_RESUME:
+        if (!paused_) throw std::invalid_argument("not paused");
+        paused_ = false;
+        pending_steps_ = 0;
+        break;
+      case ladder_msg_STEP:
+        if (!paused_) throw std::invalid_argument("step works while paused: send pause first");
+        if (c.count < 1 || c.count > limits_.max_step_count)
+          throw std::invalid_argument("the step count must be 1 to " + std::to_string(limits_.max_step_count) +
+                                      " (commands.max_step_count), not " + std::to_string(c.count));
+        pending_steps_ += c.count;
+        break;
+      case ladder_msg_RESET:
+        start(sim_->scene());
+        break;
+      case ladder_msg_SET_PARAM:
+        return set_param(text_of(c.text));
+      case ladder_msg_LOAD_SCENE:
+        return load(text_of(c.text));
+      default:
+        throw std::invalid_argument("unknown command kind " + std::to_string(static_cast<int>(c.kind)));
+    }
+  } catch (const std::invalid_argument& e) {
+    return {false, e.what()};
+  }
+  return {};
+}
+
+Outcome Session::set_param(const std::string& setting) {
+  const size_t eq = setting.find('=');
+  const std::string key = setting.substr(0, eq);
+  if (key.starts_with("server.")) {
+    if (eq == std::string::npos) return {false, setting + ": expected key=value"};
+    const std::string text = setting.substr(eq + 1);
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    const bool is_number = !text.empty() && end == text.c_str() + text.size() && std::isfinite(v);
+    if (key == "server.real_time_factor") {
+      if (!is_number || v < 0 || v > 1000)
+        return {false, setting + ": server.real_time_factor must be a number from 0 (as fast as possible) to 1000"};
+      rates_.real_time_factor = v;
+    } else if (key == "server.publish_rate") {
+      if (!is_number || v <= 0 || v > rates_.physics)
+        return {false, setting + ": server.publish_rate must be a number > 0 and at most the physics rate (" +
+                           number(rates_.physics) + " Hz)"};
+      rates_.publish = v;
+    } else if (key == "server.physics_rate") {
+      return {false, setting + ": server.physics_rate cannot change while the server runs; set it in ladderd.toml"};
+    } else {
+      return {false, setting + ": unknown key " + key +
+                         " (server keys: server.real_time_factor, server.publish_rate)"};
+    }
+    return {};
+  }
+  try {
+    sim_->set(setting);
+  } catch (const scene::SceneError& e) {
+    return {false, e.what()};
+  }
+  return {};
+}
+
+Outcome Session::load(const std::string& name) {
+  namespace fs = std::filesystem;
+  if (name.empty()) return {false, "load: give a scene name, e.g. classic"};
+  if (name.find('/') != std::string::npos || name.find('\\') != std::string::npos || name.starts_with("."))
+    return {false, "not permitted: scenes are loaded by name from the server's scene directory " + scenes_dir_};
+  const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    std::string available;
+    for (const auto& entry : fs::directory_iterator(scenes_dir_, ec))
+      if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
+    return {false, "no scene '" + name + "' in " + scenes_dir_ + " (available: " + available + ")"};
+  }
+  try {
+    start(scene::load_scene(path.string()));
+  } catch (const scene::SceneError& e) {
+    return {false, e.what()};
+  }
+  return {};
+}
+
+}  // namespace ladder::daemon

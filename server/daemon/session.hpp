@@ -1,0 +1,77 @@
+// The server's simulation session: the running scene, paused or running, and every user command applied to it.
+//
+// No DDS and no threads here: the real-time loop (server.cpp) feeds it commands and ticks, so that the command
+// rules (what is accepted, why one is refused, what changes) are tested without a network. A refused command
+// changes nothing: every check comes before the first change.
+#pragma once
+
+#include "ladder.h"  // generated from msgs/ladder.idl
+#include "scene/simulation.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace ladder::daemon {
+
+// Bounds on what a user may ask for (ladderd.toml [commands]); beyond them a command is refused, not clamped.
+struct Limits {
+  double max_impulse = 1.0;    // [N s] poke (a 25 g block would leave at 40 m/s)
+  double max_force = 100.0;    // [N] push
+  double max_duration = 60.0;  // [s] push
+  double reach = 10.0;         // [m] targets and points must lie this close to the origin
+  std::uint32_t max_step_count = 100'000;  // one step command
+};
+
+// What the server's loop runs at; the live keys server.real_time_factor and server.publish_rate change it.
+struct Rates {
+  double physics = 1000;          // ticks per wall second
+  double publish = 60;            // states per wall second
+  double real_time_factor = 1.0;  // sim seconds per wall second; 0 = as fast as possible
+};
+
+struct Outcome {
+  bool accepted = true;
+  std::string reason;  // why it was refused; empty when accepted
+};
+
+class Session {
+ public:
+  Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates);
+
+  // Validates and applies one command now.
+  Outcome apply(const ladder_msg_Command& c);
+
+  // Runs one physics step (the caller decides when: real-time pacing is the loop's job).
+  // Throws std::runtime_error when the step fails (the watchdog gave up); the session is then paused.
+  void step();
+  bool paused() const { return paused_; }
+  // Steps ordered by a step command and not yet taken (they run while paused).
+  std::uint64_t pending_steps() const { return pending_steps_; }
+  void take_pending_step() { --pending_steps_; }
+  void pause() { paused_ = true; }
+
+  scene::Simulation& sim() { return *sim_; }
+  const scene::Simulation& sim() const { return *sim_; }
+  const Rates& rates() const { return rates_; }
+  // Counts loads and resets; SceneInfo and State carry it.
+  std::uint32_t generation() const { return generation_; }
+
+ private:
+  Outcome set_param(const std::string& setting);
+  Outcome load(const std::string& name);
+  void start(const scene::Scene& scene);
+
+  std::unique_ptr<scene::Simulation> sim_;
+  std::string scenes_dir_;
+  Limits limits_;
+  Rates rates_;
+  bool paused_ = false;
+  std::uint64_t pending_steps_ = 0;
+  std::uint32_t generation_ = 0;
+};
+
+// The command kind's name as users type it ("tip", "break", "set", ...).
+const char* to_string(ladder_msg_CommandKind kind);
+
+}  // namespace ladder::daemon

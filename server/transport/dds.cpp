@@ -1,0 +1,75 @@
+#include "transport/dds.hpp"
+
+#include <cstdlib>
+
+namespace ladder::transport {
+
+void use_default_config(const std::string& xml) {
+  // setenv with overwrite = 0 keeps a user's CYCLONEDDS_URI. Cyclone reads it when the first entity is created.
+  setenv("CYCLONEDDS_URI", xml.c_str(), 0);
+}
+
+void apply_profile(Qos& qos, Profile p) {
+  dds_qos_t* q = qos.get();
+  const dds_duration_t block = DDS_MSECS(100);  // longest a reliable write may wait for room (keep-last never does)
+  switch (p) {
+    case Profile::SceneInfo:
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
+      dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+      break;
+    case Profile::State:
+      // A reader that joins late gets the latest state only if both sides are reliable and transient-local
+      // (a best-effort reader receives no history: docs/network.md). Keep-last 1 on both sides means a slow
+      // reader is simply skipped ahead: the writer never waits for it and it never sees an old state.
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
+      dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+      break;
+    case Profile::Command:
+    case Profile::CommandAck:
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+      dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+      break;
+    case Profile::Event:
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 64);
+      break;
+    case Profile::Stats:
+      dds_qset_reliability(q, DDS_RELIABILITY_BEST_EFFORT, 0);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+      break;
+  }
+}
+
+Entity make_participant(dds_domainid_t domain) {
+  return Entity(check(dds_create_participant(domain, nullptr, nullptr),
+                      "create DDS participant on domain " + std::to_string(domain)));
+}
+
+Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name) {
+  return Entity(check(dds_create_topic(participant.get(), desc, name, nullptr, nullptr),
+                      std::string("create topic ") + name));
+}
+
+Waiter::Waiter(const Entity& participant)
+    : ws_(check(dds_create_waitset(participant.get()), "create waitset")),
+      guard_(check(dds_create_guardcondition(participant.get()), "create guard condition")) {
+  check(dds_waitset_attach(ws_.get(), guard_.get(), guard_.get()), "attach guard condition");
+}
+
+void Waiter::attach(const Entity& reader) {
+  Entity rc(check(dds_create_readcondition(reader.get(), DDS_ANY_STATE), "create read condition"));
+  check(dds_waitset_attach(ws_.get(), rc.get(), rc.get()), "attach read condition");
+  conditions_.push_back(std::move(rc));
+}
+
+void Waiter::wake() const { dds_set_guardcondition(guard_.get(), true); }
+
+bool Waiter::wait(std::chrono::nanoseconds timeout) const {
+  const dds_return_t n = check(dds_waitset_wait(ws_.get(), nullptr, 0, timeout.count()), "wait");
+  dds_set_guardcondition(guard_.get(), false);
+  return n > 0;
+}
+
+}  // namespace ladder::transport

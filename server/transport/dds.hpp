@@ -1,0 +1,196 @@
+// Small RAII owners of Cyclone DDS entities (C API), and the project's QoS profiles.
+//
+// No framework: an Entity deletes its dds_entity_t when it goes out of scope, a failed call throws DdsError with
+// dds_strretcode's text, and the typed Writer/Reader only add the sample type. Declare the Participant first so it
+// is destroyed last (deleting a participant deletes its children, and an Entity whose handle is already gone just
+// gets DDS_RETCODE_BAD_PARAMETER back, which it ignores).
+#pragma once
+
+#include <dds/dds.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ladder::transport {
+
+class DdsError : public std::runtime_error {
+ public:
+  DdsError(const std::string& what, dds_return_t rc)
+      : std::runtime_error(what + ": " + dds_strretcode(rc)), code_(rc) {}
+  dds_return_t code() const { return code_; }
+
+ private:
+  dds_return_t code_;
+};
+
+// Throws DdsError when rc is negative (an error code or an invalid entity); returns it otherwise.
+inline dds_return_t check(dds_return_t rc, const std::string& what) {
+  if (rc < 0) throw DdsError(what, rc);
+  return rc;
+}
+
+// Makes Cyclone use the project's loopback configuration unless the user chose one: CYCLONEDDS_URI, when set,
+// always wins (docs/network.md). `xml` is the text of config/cyclonedds.xml, built into the binaries.
+void use_default_config(const std::string& xml);
+
+class Entity {
+ public:
+  Entity() = default;
+  explicit Entity(dds_entity_t e) : e_(e) {}
+  Entity(Entity&& o) noexcept : e_(std::exchange(o.e_, 0)) {}
+  Entity& operator=(Entity&& o) noexcept {
+    if (this != &o) {
+      reset();
+      e_ = std::exchange(o.e_, 0);
+    }
+    return *this;
+  }
+  Entity(const Entity&) = delete;
+  Entity& operator=(const Entity&) = delete;
+  ~Entity() { reset(); }
+
+  dds_entity_t get() const { return e_; }
+  explicit operator bool() const { return e_ > 0; }
+  void reset() {
+    if (e_ > 0) dds_delete(e_);
+    e_ = 0;
+  }
+
+ private:
+  dds_entity_t e_ = 0;
+};
+
+// Owns a dds_qos_t.
+class Qos {
+ public:
+  Qos() : q_(dds_create_qos()) {}
+  Qos(const Qos&) = delete;
+  Qos& operator=(const Qos&) = delete;
+  ~Qos() { dds_delete_qos(q_); }
+  dds_qos_t* get() const { return q_; }
+
+ private:
+  dds_qos_t* q_;
+};
+
+// The QoS of each topic (DESIGN.md section 5); writer and reader of a topic use the same profile.
+enum class Profile {
+  SceneInfo,   // reliable, transient-local, keep-last 1
+  State,       // best-effort, keep-last 1, transient-local (the writer side is reliable for late joiners, see .cpp)
+  Command,     // reliable, keep-all
+  CommandAck,  // reliable, keep-all
+  Event,       // reliable, keep-last 64
+  Stats,       // best-effort, keep-last 1
+};
+void apply_profile(Qos& q, Profile p);
+
+Entity make_participant(dds_domainid_t domain);
+Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name);
+
+template <class T>
+class Writer {
+ public:
+  Writer() = default;
+  Writer(const Entity& participant, const Entity& topic, Profile p) {
+    Qos q;
+    apply_profile(q, p);
+    e_ = Entity(check(dds_create_writer(participant.get(), topic.get(), q.get(), nullptr), "create writer"));
+  }
+  void write(const T& sample) const { check(dds_write(e_.get(), &sample), "write"); }
+  // Readers matched now.
+  std::uint32_t matched() const {
+    dds_publication_matched_status_t st{};
+    check(dds_get_publication_matched_status(e_.get(), &st), "publication matched status");
+    return st.current_count;
+  }
+  const Entity& entity() const { return e_; }
+
+ private:
+  Entity e_;
+};
+
+template <class T>
+class Reader {
+ public:
+  Reader() = default;
+  Reader(const Entity& participant, const Entity& topic, Profile p) {
+    Qos q;
+    apply_profile(q, p);
+    e_ = Entity(check(dds_create_reader(participant.get(), topic.get(), q.get(), nullptr), "create reader"));
+  }
+  // Takes every available sample (valid data only) and passes each to f(const T&, const dds_sample_info_t&),
+  // using the reader's loans (no copy). Returns how many valid samples were passed.
+  template <class F>
+  std::size_t take(F&& f, std::size_t max = SIZE_MAX) const {
+    constexpr std::size_t kBatch = 64;
+    std::size_t n_valid = 0;
+    while (n_valid < max) {
+      void* buf[kBatch] = {};
+      dds_sample_info_t info[kBatch];
+      const dds_return_t n = check(dds_take(e_.get(), buf, info, kBatch, kBatch), "take");
+      for (dds_return_t i = 0; i < n; ++i) {
+        if (!info[i].valid_data) continue;
+        ++n_valid;
+        try {
+          f(*static_cast<const T*>(buf[i]), info[i]);
+        } catch (...) {
+          dds_return_loan(e_.get(), buf, n);
+          throw;
+        }
+      }
+      dds_return_loan(e_.get(), buf, n);
+      if (n < static_cast<dds_return_t>(kBatch)) break;
+    }
+    return n_valid;
+  }
+  // Writers matched now.
+  std::uint32_t matched() const {
+    dds_subscription_matched_status_t st{};
+    check(dds_get_subscription_matched_status(e_.get(), &st), "subscription matched status");
+    return st.current_count;
+  }
+  const Entity& entity() const { return e_; }
+
+ private:
+  Entity e_;
+};
+
+// A waitset with the reader's data-available condition and a guard condition another thread triggers.
+class Waiter {
+ public:
+  explicit Waiter(const Entity& participant);
+  void attach(const Entity& reader);  // wakes when the reader has data
+  void wake() const;                  // from any thread
+  // Waits until data, wake() or the timeout; returns true unless it timed out.
+  bool wait(std::chrono::nanoseconds timeout) const;
+
+ private:
+  Entity ws_, guard_;
+  std::vector<Entity> conditions_;
+};
+
+// Copies a std::string into a bounded char[N] field, truncating (with "...") when it does not fit.
+template <std::size_t N>
+void copy_text(char (&dst)[N], const std::string& src) {
+  if (src.size() < N) {
+    std::copy(src.begin(), src.end(), dst);
+    dst[src.size()] = '\0';
+    return;
+  }
+  std::copy(src.begin(), src.begin() + (N - 4), dst);
+  std::copy_n("...", 4, dst + (N - 4));
+}
+// A bounded char[N] field as a string (never reads past the field, even without a terminator).
+template <std::size_t N>
+std::string text_of(const char (&src)[N]) {
+  std::size_t n = 0;
+  while (n < N && src[n] != '\0') ++n;
+  return std::string(src, n);
+}
+
+}  // namespace ladder::transport

@@ -1,0 +1,303 @@
+// ladderd as users meet it: a real server process, real Cyclone DDS on loopback, a unique domain and sim id per
+// test, and the same client library ladderctl uses.
+#include "client.hpp"
+#include "process.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <limits>
+#include <map>
+
+namespace ladder::test {
+namespace {
+
+using client::Client;
+using client::Millis;
+namespace cmd = client::cmd;
+using Clock = std::chrono::steady_clock;
+
+constexpr Millis kStart{15000};  // generous: CI runs two tests at once on two cores
+constexpr Millis kAnswer{5000};
+
+std::string test_name() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  return std::string(info->test_suite_name()) + "." + info->name();
+}
+
+int domain_for(const std::string& name) { return 1 + static_cast<int>(std::hash<std::string>{}(name) % 230); }
+
+class Server : public ::testing::Test {
+ protected:
+  void start(std::vector<std::string> extra = {}) {
+    const std::string name = test_name();
+    // The pid makes a rerun's server distinct from a killed one that discovery still lists (until its lease ends).
+    sim_id_ = name + "-" + std::to_string(getpid());
+    for (char& ch : sim_id_)
+      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
+    domain_ = domain_for(name);
+    log_path_ = std::string(LADDER_BINARY_DIR) + "/tests/" + name + ".log";
+    std::vector<std::string> args{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
+                                  std::to_string(domain_), "--sim-id", sim_id_, "--log-level", "debug"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    server_.emplace(args, log_path_);
+    client_.emplace(domain_, sim_id_, "test");
+    ASSERT_TRUE(client_->wait_for_server(kStart)) << "no ladderd on domain " << domain_ << "; its log:\n"
+                                                  << server_->log();
+  }
+
+  Client& c() { return *client_; }
+
+  // Pauses and returns the paused state.
+  client::State pause() {
+    const client::Ack a = c().call(cmd::pause(), kAnswer);
+    EXPECT_TRUE(a.accepted) << a.reason;
+    auto s = c().wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+    EXPECT_TRUE(s.has_value());
+    return s.value_or(client::State{});
+  }
+
+  // Sends c, expects a refusal whose reason contains `why`, and checks that the next state equals `before`.
+  void expect_refusal(const ladder_msg_Command& command, const std::string& why) {
+    const client::Ack a = c().call(command, kAnswer);
+    EXPECT_FALSE(a.accepted) << "accepted, but expected a refusal containing '" << why << "'";
+    EXPECT_NE(a.reason.find(why), std::string::npos) << "reason: " << a.reason;
+  }
+  void expect_refused(const ladder_msg_Command& command, const std::string& why, const client::State& before) {
+    expect_refusal(command, why);
+    const auto after = c().wait_state([](const client::State&) { return true; }, kAnswer);
+    ASSERT_TRUE(after.has_value());
+    EXPECT_EQ(after->step, before.step);
+    EXPECT_EQ(after->sim_time, before.sim_time);
+    EXPECT_EQ(after->generation, before.generation);
+    ASSERT_EQ(after->blocks.size(), before.blocks.size());
+    EXPECT_EQ(0, std::memcmp(after->blocks.data(), before.blocks.data(), before.blocks.size() * sizeof(ladder_msg_Pose)))
+        << "a refused command changed the blocks";
+    ASSERT_EQ(after->hinges.size(), before.hinges.size());
+    for (std::size_t k = 0; k < before.hinges.size(); ++k) {
+      EXPECT_EQ(after->hinges[k].status, before.hinges[k].status) << "hinge " << k;
+      EXPECT_EQ(after->hinges[k].corner, before.hinges[k].corner) << "hinge " << k;
+    }
+    EXPECT_EQ(after->grabbed_block, before.grabbed_block);
+  }
+
+  void expect_accepted(const ladder_msg_Command& command) {
+    const client::Ack a = c().call(command, kAnswer);
+    EXPECT_TRUE(a.accepted) << a.reason;
+  }
+
+  std::string sim_id_, log_path_;
+  int domain_ = 0;
+  std::optional<Process> server_;
+  std::optional<Client> client_;
+};
+
+// The built-in classic toy, tipped by a client: the ripple runs down hinge by hinge, as offline.
+TEST_F(Server, TipMakesTheRippleRunDownEveryHinge) {
+  start();
+  const auto info = c().wait_scene_info(kAnswer);
+  ASSERT_TRUE(info.has_value());
+  ASSERT_EQ(info->blocks, 6u);
+  const client::Ack ack = c().call(cmd::tip(), kAnswer);
+  ASSERT_TRUE(ack.accepted) << ack.reason;
+  std::map<int, double> first_flip;  // hinge -> time of its first flip-flop
+  const auto deadline = Clock::now() + Millis(20000);
+  while (first_flip.size() < 5 && Clock::now() < deadline) {
+    c().wait_state([](const client::State&) { return true; }, Millis(200));
+    for (const client::Event& e : c().take_events()) {
+      if (e.kind == "flip_flop" && !first_flip.count(e.hinge)) first_flip[e.hinge] = e.t;
+    }
+  }
+  ASSERT_EQ(first_flip.size(), 5u) << "the ripple stopped early";
+  for (int k = 1; k <= 5; ++k) {
+    ASSERT_TRUE(first_flip.count(k)) << "hinge " << k << " never flipped";
+    EXPECT_GT(first_flip[k], ack.sim_time) << "hinge " << k << " flipped before the tip";
+    if (k > 1) {
+      EXPECT_GT(first_flip[k], first_flip[k - 1]) << "hinge " << k << " flipped before hinge " << k - 1;
+    }
+  }
+}
+
+// A client that joins late (the ladder paused, so nothing new is being published) still gets the scene and the
+// latest state at once: both are transient-local.
+TEST_F(Server, LateJoinerGetsSceneInfoAndStateWithinOneSecond) {
+  start();
+  const client::State paused = pause();
+  const auto t0 = Clock::now();
+  Client late(domain_, sim_id_, "late");
+  const bool both = late.wait_for_server(Millis(1000));  // matched, with a SceneInfo and a State
+  const double waited = std::chrono::duration<double>(Clock::now() - t0).count();
+  const auto& info = late.scene_info();
+  const auto& state = late.latest_state();
+  ASSERT_TRUE(both) << "within 1 s: SceneInfo " << info.has_value() << ", State " << state.has_value();
+  EXPECT_LT(waited, 1.0);
+  EXPECT_EQ(info->blocks, 6u);
+  EXPECT_DOUBLE_EQ(info->length, 0.064);
+  ASSERT_EQ(info->masses.size(), 6u);
+  EXPECT_DOUBLE_EQ(info->masses[0], 0.025);
+  EXPECT_EQ(state->step, paused.step);
+  EXPECT_EQ(state->blocks.size(), 6u);
+}
+
+TEST_F(Server, PauseThenStepTenAdvancesExactlyTenSteps) {
+  start();
+  const client::State p = pause();
+  const auto info = c().wait_scene_info(kAnswer);
+  ASSERT_TRUE(info.has_value());
+  expect_accepted(cmd::step(10));
+  const auto s = c().wait_state([&](const client::State& st) { return st.step >= p.step + 10; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->step, p.step + 10);
+  EXPECT_NEAR(s->sim_time, p.sim_time + 10 * info->dt, 1e-12);
+  // Still paused: no further steps however long we wait.
+  const auto later = c().wait_state([&](const client::State& st) { return st.step != p.step + 10; }, Millis(300));
+  EXPECT_FALSE(later.has_value()) << "the ladder moved on while paused, to step " << later->step;
+  expect_accepted(cmd::resume());
+  EXPECT_TRUE(c().wait_state([&](const client::State& st) { return st.step > p.step + 20 && !st.paused; }, kAnswer));
+}
+
+TEST_F(Server, EveryCommandKindIsAcceptedWhenValid) {
+  start();
+  pause();
+  expect_accepted(cmd::poke(3, 0.001, 0));
+  expect_accepted(cmd::poke_at(2, 0, 0.001, 0.0, -0.15));
+  expect_accepted(cmd::push(4, 0.01, 0, 0.05));
+  expect_accepted(cmd::grab(5, 0.1, -0.3));
+  expect_accepted(cmd::drag(0.15, -0.3));
+  expect_accepted(cmd::step(50));
+  auto s = c().wait_state([](const client::State& st) { return st.grabbed_block == 5; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_DOUBLE_EQ(s->grab_target_x, 0.15);
+  expect_accepted(cmd::release());
+  expect_accepted(cmd::break_hinge(5));
+  expect_accepted(cmd::join_hinge(5));
+  expect_accepted(cmd::set("damping.linear=0.5"));
+  expect_accepted(cmd::set("server.real_time_factor=0.5"));
+  const auto info = c().wait_scene_info(kAnswer);
+  expect_accepted(cmd::tip());
+  expect_accepted(cmd::reset());
+  s = c().wait_state([](const client::State& st) { return st.step == 0; }, kAnswer);
+  ASSERT_TRUE(s.has_value()) << "reset did not restart at step 0";
+  expect_accepted(cmd::load("double-ripple"));
+  const auto loaded = c().wait_state([](const client::State& st) { return st.blocks.size() == 16; }, kAnswer);
+  ASSERT_TRUE(loaded.has_value()) << "the loaded scene's state never came";
+  const auto li = c().wait_scene_info(kAnswer);
+  ASSERT_TRUE(li.has_value());
+  EXPECT_EQ(li->blocks, 16u);
+  expect_accepted(cmd::resume());
+  // The live setting shows in SceneInfo.
+  EXPECT_NE(li->options.find("damping.linear="), std::string::npos);
+}
+
+TEST_F(Server, InvalidCommandsAreRefusedWithAReasonAndChangeNothing) {
+  start();
+  const client::State s = pause();
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  expect_refused(cmd::poke(99, 0.001, 0), "no block 99", s);
+  expect_refused(cmd::poke(-1, 0.001, 0), "no block -1", s);
+  expect_refused(cmd::poke(2, nan, 0), "not a finite number", s);
+  expect_refused(cmd::push(2, inf, 0, 0.1), "not a finite number", s);
+  expect_refused(cmd::poke(2, 1e6, 0), "beyond the limit of 1 N s", s);
+  expect_refused(cmd::push(2, 5000, 0, 0.1), "beyond the limit of 100 N", s);
+  expect_refused(cmd::push(2, 1, 0, -1), "duration", s);
+  expect_refused(cmd::poke_at(2, 0.001, 0, 5.0, 5.0), "outside the block", s);
+  expect_refused(cmd::grab(0, 0, 0), "held by the hand", s);
+  expect_refused(cmd::grab(3, 1e9, 0), "beyond the reach", s);
+  expect_refused(cmd::drag(0, 0), "nothing is grabbed", s);
+  expect_refused(cmd::release(), "nothing is grabbed", s);
+  expect_refused(cmd::break_hinge(6), "no hinge 6", s);
+  expect_refused(cmd::join_hinge(3), "is not broken", s);
+  expect_refused(cmd::set("solver.tolerence=1e-9"), "solver.tolerance", s);  // did-you-mean
+  expect_refused(cmd::set("ladder.blocks=3"), "cannot change while the ladder runs", s);
+  expect_refused(cmd::set("sim.dt=-1"), "sim.dt", s);
+  expect_refused(cmd::set("server.physics_rate=10"), "cannot change while the server runs", s);
+  expect_refused(cmd::load("../../etc/passwd"), "not permitted", s);
+  expect_refused(cmd::load("no-such-scene"), "no scene 'no-such-scene'", s);
+  expect_refused(cmd::pause(), "already paused", s);
+  // (A command kind outside the enum cannot be sent: Cyclone refuses to serialise it, and a receiver drops it.)
+
+  // Break the bottom hinge, let block 5 fall away, and a join is refused with the distance.
+  expect_accepted(cmd::break_hinge(5));
+  expect_refused(cmd::break_hinge(5), "already broken", c().wait_state([](const client::State& st) {
+                   return st.hinges.size() == 6 && st.hinges[5].status == ladder_msg_BROKEN;
+                 }, kAnswer).value_or(s));
+  expect_accepted(cmd::step(300));
+  const auto fallen = c().wait_state([&](const client::State& st) { return st.step == s.step + 300; }, kAnswer);
+  ASSERT_TRUE(fallen.has_value());
+  expect_refused(cmd::join_hinge(5), "more than the capture distance", *fallen);
+  expect_refused(cmd::step(0), "step count", *fallen);
+  expect_accepted(cmd::resume());
+  expect_refusal(cmd::step(5), "while paused");
+}
+
+// A burst far beyond the queue: every command is answered, accepted or refused for the rate, none lost, and the
+// loop keeps stepping meanwhile.
+TEST_F(Server, TenThousandCommandsInABurstAreAllAnswered) {
+  start();
+  const auto before = c().wait_stats([](const ladder_msg_Stats&) { return true; }, kStart);
+  ASSERT_TRUE(before.has_value());
+  constexpr int kBurst = 10000;
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < kBurst; ++i) ids.push_back(c().send(cmd::set("damping.hinge=0")));
+  int accepted = 0, rate_limited = 0, other = 0;
+  for (std::uint64_t id : ids) {
+    const auto a = c().wait_ack(id, Millis(30000));
+    ASSERT_TRUE(a.has_value()) << "command " << id << " was never answered";
+    if (a->accepted) {
+      ++accepted;
+    } else if (a->reason.starts_with("rate limit")) {
+      ++rate_limited;
+    } else {
+      ++other;
+    }
+  }
+  EXPECT_EQ(accepted + rate_limited, kBurst);
+  EXPECT_EQ(other, 0);
+  EXPECT_GT(accepted, 0);
+  EXPECT_EQ(c().acks_received(), static_cast<std::size_t>(kBurst)) << "duplicate or extra acks";
+  const auto after = c().wait_stats([&](const ladder_msg_Stats& st) { return st.commands_received >= kBurst; },
+                                    Millis(10000));
+  ASSERT_TRUE(after.has_value());
+  EXPECT_GT(after->steps, before->steps + 100) << "the loop stalled";
+  EXPECT_EQ(after->commands_accepted + after->commands_rate_limited + after->commands_refused,
+            after->commands_received);
+  EXPECT_EQ(after->commands_rate_limited, static_cast<std::uint64_t>(rate_limited));
+}
+
+TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
+  start();
+  const auto t0 = Clock::now();
+  server_->signal(SIGTERM);
+  const auto status = server_->wait_exit(Millis(1000));
+  ASSERT_TRUE(status.has_value()) << "still running 1 s after SIGTERM";
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 1.0);
+  ASSERT_TRUE(WIFEXITED(*status));
+  EXPECT_EQ(WEXITSTATUS(*status), 0);
+  EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
+}
+
+// Two ladders on one domain: each client sees only its own.
+TEST_F(Server, TwoSimIdsShareADomainWithoutMixing) {
+  start();
+  const std::string other_id = sim_id_ + "-other";
+  Process other({std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain", std::to_string(domain_),
+                 "--sim-id", other_id, "--scene", std::string(LADDER_SOURCE_DIR) + "/config/scenes/double-ripple.toml"},
+                log_path_ + ".other");
+  Client oc(domain_, other_id, "other");
+  ASSERT_TRUE(oc.wait_for_server(kStart)) << other.log();
+  EXPECT_EQ(oc.scene_info()->blocks, 16u);
+  EXPECT_TRUE(oc.wait_state([](const client::State& st) { return st.blocks.size() == 16; }, kAnswer));
+  const client::Ack a = oc.call(cmd::pause(), kAnswer);
+  EXPECT_TRUE(a.accepted) << a.reason;
+  // Ours still runs with 6 blocks, unpaused.
+  const auto mine = c().wait_state([](const client::State&) { return true; }, kAnswer);
+  ASSERT_TRUE(mine.has_value());
+  EXPECT_EQ(mine->blocks.size(), 6u);
+  EXPECT_FALSE(mine->paused);
+  EXPECT_EQ(c().scene_info()->blocks, 6u);
+}
+
+}  // namespace
+}  // namespace ladder::test
