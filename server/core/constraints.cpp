@@ -13,6 +13,25 @@
 
 namespace ladder::core {
 
+namespace {
+
+// K_kk with (ua, ub) == (ua0, ub0); with the anchors of two configurations, the diagonal block of the exact Newton
+// Jacobian G(q) W G(q0)^T.
+[[gnu::always_inline]] inline Mat2 diagonal_block(const Vec2& ua, const Vec2& ub, const Vec2& ua0, const Vec2& ub0, double wa, double ia, double wb,
+                    double ib) {
+  Mat2 d = (wa + wb) * Mat2::Identity();
+  d.noalias() += ia * perp(ua) * perp(ua0).transpose();
+  d.noalias() += ib * perp(ub) * perp(ub0).transpose();
+  return d;
+}
+
+// The coupling of two rows through the body s they share: -(w_s I + i_s perp(p) perp(q)^T).
+[[gnu::always_inline]] inline Mat2 coupling_block(const Vec2& p, const Vec2& q, double ws, double is) {
+  return -(ws * Mat2::Identity() + is * perp(p) * perp(q).transpose());
+}
+
+}  // namespace
+
 void World::world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const {
   const size_t n = rows_.size();
   ua.resize(n);
@@ -21,6 +40,14 @@ void World::world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const {
     ua[k] = state_[rows_[k].a].q * rows_[k].ra;
     ub[k] = state_[rows_[k].b].q * rows_[k].rb;
   }
+}
+
+// The velocity projection that ends a step leaves the anchors of the state it projected in ua0_/ub0_; the next
+// step starts from that state, so it needs no pass of its own.
+void World::start_anchors() {
+  if (anchors_version_ == state_version_ && ua0_.size() == rows_.size()) return;
+  world_anchors(ua0_, ub0_);
+  anchors_version_ = state_version_;
 }
 
 // Builds G(q) W G(q0)^T: with (ua, ub) == (ua0, ub0) the symmetric K above; with the anchors of two different
@@ -33,15 +60,11 @@ void World::build_newton_system(const std::vector<Vec2>& ua, const std::vector<V
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
-    Mat2 d = (A.inv_mass + B.inv_mass) * Mat2::Identity();
-    d.noalias() += A.inv_inertia * perp(ua[k]) * perp(ua0[k]).transpose();
-    d.noalias() += B.inv_inertia * perp(ub[k]) * perp(ub0[k]).transpose();
-    sys.diag[k] = d;
+    sys.diag[k] = diagonal_block(ua[k], ub[k], ua0[k], ub0[k], A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
     if (k == 0) continue;
     if (r.link_prev) {
-      const Body& S = bodies_[r.a];
-      sys.upper[k - 1] = -(S.inv_mass * Mat2::Identity() + S.inv_inertia * perp(ub[k - 1]) * perp(ua0[k]).transpose());
-      sys.lower[k] = -(S.inv_mass * Mat2::Identity() + S.inv_inertia * perp(ua[k]) * perp(ub0[k - 1]).transpose());
+      sys.upper[k - 1] = coupling_block(ub[k - 1], ua0[k], A.inv_mass, A.inv_inertia);
+      sys.lower[k] = coupling_block(ua[k], ub0[k - 1], A.inv_mass, A.inv_inertia);
     } else {
       sys.upper[k - 1].setZero();
       sys.lower[k].setZero();
@@ -65,14 +88,13 @@ double World::residuals(std::vector<Vec2>& c) const {
   c.resize(n);
   double worst = 0;
   for (size_t k = 0; k < n; ++k) {
-    const Row& r = rows_[k];
-    const BodyState& a = state_[r.a];
-    const BodyState& b = state_[r.b];
-    c[k] = (a.x + a.q * r.ra) - (b.x + b.q * r.rb);
+    c[k] = row_residual(rows_[k]);
     worst = std::max(worst, c[k].squaredNorm());
   }
   return std::sqrt(worst);
 }
+
+double World::position_residual() { return residual_version_ == state_version_ ? residual_ : residuals(c_); }
 
 // q += W G(q0)^T mu for every body; with velocity_scale = 1/h the same change is made to the velocities (SHAKE:
 // the multipliers are the impulses of the step), with 0 positions only (a projection).
@@ -89,19 +111,95 @@ void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2
     tau_[r.b] -= cross(ub0[k], mu[k]);
     if (velocity_scale != 0) row_impulse_[k] += velocity_scale * mu[k];
   }
-  for (size_t b = 0; b < nb; ++b) {
-    const Body& body = bodies_[b];
-    if (body.kinematic) continue;
-    BodyState& s = state_[b];
-    const Vec2 dx = body.inv_mass * f_[b];
-    const double dth = body.inv_inertia * tau_[b];
-    s.x += dx;
-    s.th += dth;
-    s.q = (s.q * rotation_of_small_angle(dth)).renormalised();
-    s.v += velocity_scale * dx;
-    s.w += velocity_scale * dth;
-  }
+  for (size_t b = 0; b < nb; ++b)
+    if (!bodies_[b].kinematic) correct_body(static_cast<int>(b), f_[b], tau_[b], velocity_scale);
   mark_state_changed();
+}
+
+// The residuals c_ at the current state and, in the same pass, the chord system's forward substitution of -c_
+// into mu_: the first Newton iteration needs it unless the state already satisfies the hinges.
+double World::forward_residual(const BlockTridiag& sys) {
+  c_.resize(rows_.size());
+  double worst = 0;
+  sys.forward(mu_, [this, &worst](int k) {
+    c_[k] = row_residual(rows_[k]);
+    worst = std::max(worst, c_[k].squaredNorm());
+    return Vec2(-c_[k]);
+  });
+  residual_ = std::sqrt(worst);
+  residual_version_ = state_version_;
+  return residual_;
+}
+
+// The exact Newton matrix G(q) W G(q0)^T at the current anchors, built, factored and forward-substituted against
+// -c_ in one pass (newton_, mu_). The same blocks as build_newton_system().
+void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0) {
+  Vec2 ub_prev = Vec2::Zero();
+  const auto row = [&](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) {
+    const Row& r = rows_[k];
+    const Body& A = bodies_[r.a];
+    const Body& B = bodies_[r.b];
+    const Vec2 ua = state_[r.a].q * r.ra, ub = state_[r.b].q * r.rb;
+    d = diagonal_block(ua, ub, ua0[k], ub0[k], A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
+    if (r.link_prev) {
+      u_prev = coupling_block(ub_prev, ua0[k], A.inv_mass, A.inv_inertia);
+      l = coupling_block(ua, ub0[k - 1], A.inv_mass, A.inv_inertia);
+    } else {
+      u_prev.setZero();
+      l.setZero();
+    }
+    ub_prev = ub;
+    rhs = -c_[k];
+  };
+  stats_.regularised_pivots += newton_.factor_forward(static_cast<int>(rows_.size()), row, mu_);
+}
+
+// Back-substitutes the forward-substituted mu_ of `sys` and applies the correction q += W G(q0)^T mu body by body
+// as soon as a body's multipliers are final, then the new residual of each hinge as soon as both its bodies are:
+// one pass instead of three (back substitution, apply_correction(), residuals()). Rows are ordered along chains
+// and a dynamic body is in at most two rows, k and k+1 with rows_[k+1].link_prev (topology.cpp), so when the sweep
+// reaches row k, the body it shares with row k+1 has both its multipliers. Each body's sums are formed in row
+// order from zero, as apply_correction() forms them, so the two give bit-identical states.
+double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                                  double velocity_scale) {
+  const int n = static_cast<int>(rows_.size());
+  double worst = 0;
+  const auto check = [this, &worst](int k) {
+    c_[k] = row_residual(rows_[k]);
+    worst = std::max(worst, c_[k].squaredNorm());
+  };
+  sys.backward(mu_, [&](int k) {
+    const Row& r = rows_[k];
+    const Vec2& m = mu_[k];
+    const bool shared = k + 1 < n && rows_[k + 1].link_prev;  // r.b is rows_[k + 1].a
+    if (!bodies_[r.b].kinematic) {
+      Vec2 f = Vec2::Zero();
+      double tau = 0;
+      f -= m;
+      tau -= cross(ub0[k], m);
+      if (shared) {
+        f += mu_[k + 1];
+        tau += cross(ua0[k + 1], mu_[k + 1]);
+      }
+      correct_body(r.b, f, tau, velocity_scale);
+    }
+    if (!r.link_prev && !bodies_[r.a].kinematic) {
+      Vec2 f = Vec2::Zero();
+      double tau = 0;
+      f += m;
+      tau += cross(ua0[k], m);
+      correct_body(r.a, f, tau, velocity_scale);
+    }
+    if (velocity_scale != 0) row_impulse_[k] += velocity_scale * m;
+    if (!r.link_prev) check(k);
+    if (shared) check(k + 1);
+  });
+  // apply_correction() renormalises every dynamic body's rotation, hinged or not.
+  for (int b : free_bodies_) correct_body(b, Vec2::Zero(), 0.0, velocity_scale);
+  mark_state_changed();
+  residual_ = std::sqrt(worst);
+  residual_version_ = state_version_;
+  return residual_;
 }
 
 // Solves C(q0 + W G(q0)^T mu) = 0 for mu by Newton's method, starting from the current q (= q0 plus the
@@ -109,12 +207,15 @@ void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2
 // linearly at a rate of about |w h| per iteration, and refreshes to the exact Jacobian if that rate is poor.
 // The paper's solver (NewtonLineSearch) uses the exact Jacobian every iteration and backtracks along the Newton
 // direction until the residual decreases (Numerical Recipes' lnsrch criterion).
+//
+// Each iteration of the default solver is two passes along the chains: a forward substitution (fused with the
+// build and factorisation when the Jacobian is the exact one, and with the residual on the first iteration) and a
+// backward one that applies the correction and measures the new residual (correct_along_chain()).
 bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, double velocity_scale) {
   if (rows_.empty()) return true;
   const bool paper = options_.solver == SolverKind::NewtonLineSearch;
   bool exact = paper;
-  BlockTridiag& newton = newton_;
-  double res = residuals(c_);
+  double res = paper ? residuals(c_) : forward_residual(system_);
   const double initial = res;
   for (int it = 0; it < options_.max_iterations; ++it) {
     if (!(res < 1e3 * initial + 1e-9)) break;  // diverging: give up, the caller redoes the step smaller
@@ -123,83 +224,116 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
       return true;
     }
     ++stats_.iterations;
-    mu_.resize(c_.size());
-    for (size_t k = 0; k < c_.size(); ++k) mu_[k] = -c_[k];
-    if (exact) {
-      world_anchors(ua_, ub_);
-      build_newton_system(ua_, ub_, ua0, ub0, newton);
-      stats_.regularised_pivots += newton.factor();
-      newton.solve(mu_);
-    } else {
-      system_.solve(mu_);
-    }
-    if (!paper) {
-      apply_correction(mu_, ua0, ub0, velocity_scale);
-      double next = residuals(c_);
-      // A step that makes things worse is cut back by halves (the correction is linear in mu, so applying -mu/2
-      // undoes half of it): near heavily loaded light bodies (the top of a long hanging chain) a full Newton
-      // step can overshoot and cycle.
-      for (int cut = 0; cut < 6 && next > res; ++cut) {
-        for (Vec2& m : mu_) m *= -0.5;
-        apply_correction(mu_, ua0, ub0, velocity_scale);
-        for (Vec2& m : mu_) m = -m;
-        next = residuals(c_);
-      }
-      if (next > 0.25 * res) exact = true;  // the chord is converging slowly: switch to the exact Jacobian
-      res = next;
-      continue;
-    }
-    // Backtracking: accept the largest step 2^-j whose residual satisfies f(new) <= (1 - 1e-4 step) f(old),
-    // f = |C|^2 / 2; the 10th halving is kept whatever it gives (the next iteration re-linearises).
-    const auto start = state_;
-    const auto impulse_start = row_impulse_;
-    double f0 = 0;
-    for (const Vec2& ck : c_) f0 += 0.5 * ck.squaredNorm();
-    double step = 1.0;
-    for (int j = 0; j < 10; ++j) {
-      apply_correction(mu_, ua0, ub0, velocity_scale);
-      double f = 0;
-      res = residuals(c_);
-      for (const Vec2& ck : c_) f += 0.5 * ck.squaredNorm();
-      if (f <= (1 - 1e-4 * step) * f0 || j == 9) break;  // after 10 halvings keep the last trial
-      state_ = start;
-      row_impulse_ = impulse_start;
-      for (Vec2& m : mu_) m *= 0.5;
-      step *= 0.5;
-    }
+    res = paper ? linesearch_iteration(ua0, ub0, velocity_scale)
+                : newton_iteration(it > 0, exact, res, ua0, ub0, velocity_scale);
   }
   stats_.residual = std::max(stats_.residual, res);
   return res <= options_.tolerance;
 }
 
+// One iteration of the default solver from the residual c_ (res its largest), returning the new largest residual.
+// `forward` says whether mu_ still needs the forward substitution (forward_residual() did it for the first).
+double World::newton_iteration(bool forward, bool& exact, double res, const std::vector<Vec2>& ua0,
+                               const std::vector<Vec2>& ub0, double velocity_scale) {
+  if (exact)
+    factor_exact_forward(ua0, ub0);
+  else if (forward)
+    system_.forward(mu_, [this](int k) { return Vec2(-c_[k]); });
+  double next = correct_along_chain(exact ? newton_ : system_, ua0, ub0, velocity_scale);
+  // A step that makes things worse is cut back by halves (the correction is linear in mu, so applying -mu/2
+  // undoes half of it): near heavily loaded light bodies (the top of a long hanging chain) a full Newton
+  // step can overshoot and cycle.
+  for (int cut = 0; cut < 6 && next > res; ++cut) {
+    for (Vec2& m : mu_) m *= -0.5;
+    apply_correction(mu_, ua0, ub0, velocity_scale);
+    for (Vec2& m : mu_) m = -m;
+    next = residuals(c_);
+  }
+  if (next > 0.25 * res) exact = true;  // the chord is converging slowly: switch to the exact Jacobian
+  return next;
+}
+
+// One iteration of the paper's solver: the exact Jacobian, then backtracking: accept the largest step 2^-j whose
+// residual satisfies f(new) <= (1 - 1e-4 step) f(old), f = |C|^2 / 2; the 10th halving is kept whatever it gives
+// (the next iteration re-linearises).
+double World::linesearch_iteration(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                                   double velocity_scale) {
+  mu_.resize(c_.size());
+  for (size_t k = 0; k < c_.size(); ++k) mu_[k] = -c_[k];
+  world_anchors(ua_, ub_);
+  build_newton_system(ua_, ub_, ua0, ub0, newton_);
+  stats_.regularised_pivots += newton_.factor();
+  newton_.solve(mu_);
+  const auto start = state_;
+  const auto impulse_start = row_impulse_;
+  double f0 = 0;
+  for (const Vec2& ck : c_) f0 += 0.5 * ck.squaredNorm();
+  double step = 1.0, res = 0;
+  for (int j = 0; j < 10; ++j) {
+    apply_correction(mu_, ua0, ub0, velocity_scale);
+    double f = 0;
+    res = residuals(c_);
+    for (const Vec2& ck : c_) f += 0.5 * ck.squaredNorm();
+    if (f <= (1 - 1e-4 * step) * f0 || j == 9) break;  // after 10 halvings keep the last trial
+    state_ = start;
+    row_impulse_ = impulse_start;
+    for (Vec2& m : mu_) m *= 0.5;
+    step *= 0.5;
+  }
+  return res;
+}
+
 // Makes velocities satisfy the hinges: G v = 0 (kinematic bodies' prescribed velocities included), by the
 // impulse G^T nu of least kinetic energy change, K nu = -G v. Factors K at the current positions and keeps
-// the factorisation for the next step's position solve.
+// the factorisation (system_) and the anchors (ua0_, ub0_) for the next step's position solve. Two passes: the
+// forward one builds K, factors it and forward-substitutes -G v; the backward one back-substitutes and applies the
+// impulses to each body once its multipliers are final (in row order per body, as a row-by-row loop would).
 void World::project_velocities() {
   ensure_built();
   if (rows_.empty()) return;
-  world_anchors(ua_, ub_);
-  factor_system(ua_, ub_);
-  const size_t n = rows_.size();
-  mu_.resize(n);
-  for (size_t k = 0; k < n; ++k) {
-    const BodyState& a = state_[rows_[k].a];
-    const BodyState& b = state_[rows_[k].b];
-    mu_[k] = -((a.v + a.w * perp(ua_[k])) - (b.v + b.w * perp(ub_[k])));
-  }
-  system_.solve(mu_);
-  for (size_t k = 0; k < n; ++k) {
+  const int n = static_cast<int>(rows_.size());
+  ua0_.resize(rows_.size());
+  ub0_.resize(rows_.size());
+  const auto row = [this](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) {
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
-    BodyState& a = state_[r.a];
+    const BodyState& a = state_[r.a];
+    const BodyState& b = state_[r.b];
+    const Vec2 ua = a.q * r.ra, ub = b.q * r.rb;
+    ua0_[k] = ua;
+    ub0_[k] = ub;
+    d = diagonal_block(ua, ub, ua, ub, A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
+    if (r.link_prev) {
+      u_prev = coupling_block(ub0_[k - 1], ua, A.inv_mass, A.inv_inertia);
+      l = coupling_block(ua, ub0_[k - 1], A.inv_mass, A.inv_inertia);
+    } else {
+      u_prev.setZero();
+      l.setZero();
+    }
+    rhs = -((a.v + a.w * perp(ua)) - (b.v + b.w * perp(ub)));
+  };
+  stats_.regularised_pivots += system_.factor_forward(n, row, mu_);
+  factor_version_ = anchors_version_ = state_version_;
+  system_.backward(mu_, [this, n](int k) {
+    const Row& r = rows_[k];
+    const Vec2& m = mu_[k];
+    const Body& B = bodies_[r.b];
     BodyState& b = state_[r.b];
-    a.v += A.inv_mass * mu_[k];
-    a.w += A.inv_inertia * cross(ua_[k], mu_[k]);
-    b.v -= B.inv_mass * mu_[k];
-    b.w -= B.inv_inertia * cross(ub_[k], mu_[k]);
-    row_impulse_[k] += mu_[k];
-  }
+    b.v -= B.inv_mass * m;
+    b.w -= B.inv_inertia * cross(ub0_[k], m);
+    if (k + 1 < n && rows_[k + 1].link_prev) {  // r.b is rows_[k + 1].a: its second row's impulse, in row order
+      b.v += B.inv_mass * mu_[k + 1];
+      b.w += B.inv_inertia * cross(ua0_[k + 1], mu_[k + 1]);
+    }
+    if (!r.link_prev) {
+      const Body& A = bodies_[r.a];
+      BodyState& a = state_[r.a];
+      a.v += A.inv_mass * m;
+      a.w += A.inv_inertia * cross(ua0_[k], m);
+    }
+    row_impulse_[k] += m;
+  });
 }
 
 // Accelerations of every body under the applied forces and the hinge forces that keep the hinges' accelerations

@@ -74,31 +74,36 @@ void World::drive_kinematic(double t) {
   mark_state_changed();
 }
 
+// Gravity and damping on one dynamic body at the current state.
+void World::body_force(int b, Vec2& f, double& tau) const {
+  const Body& body = bodies_[b];
+  const BodyState& s = state_[b];
+  const Vec2 g = options_.gravity;
+  const double cl = options_.linear_damping, ca = options_.angular_damping;
+  if (body.single_part) {
+    f = body.mass * (g - cl * s.v);
+    tau = -ca * body.inertia * s.w;
+    return;
+  }
+  f.setZero();
+  tau = 0;
+  for (int i : body_parts_[b]) {  // damping acts on each part's own motion
+    const Part& p = parts_[i];
+    const Vec2 d = s.q * p.rel_x;
+    const Vec2 fp = p.mass * (g - cl * (s.v + s.w * perp(d)));
+    f += fp;
+    tau += cross(d, fp) - ca * p.inertia * s.w;
+  }
+}
+
 // Applied forces at the current state: gravity, damping, hinge friction and the users' forces (those weighted over
 // the step of length h that they act for, AppliedForce::over_step).
 void World::accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const {
   const size_t nb = bodies_.size();
   f.assign(nb, Vec2::Zero());
   tau.assign(nb, 0.0);
-  const Vec2 g = options_.gravity;
-  const double cl = options_.linear_damping, ca = options_.angular_damping;
-  for (size_t b = 0; b < nb; ++b) {
-    const Body& body = bodies_[b];
-    if (body.kinematic) continue;
-    const BodyState& s = state_[b];
-    if (body_parts_[b].size() == 1) {
-      f[b] = body.mass * (g - cl * s.v);
-      tau[b] = -ca * body.inertia * s.w;
-      continue;
-    }
-    for (int i : body_parts_[b]) {  // damping acts on each part's own motion
-      const Part& p = parts_[i];
-      const Vec2 d = s.q * p.rel_x;
-      const Vec2 fp = p.mass * (g - cl * (s.v + s.w * perp(d)));
-      f[b] += fp;
-      tau[b] += cross(d, fp) - ca * p.inertia * s.w;
-    }
-  }
+  for (size_t b = 0; b < nb; ++b)
+    if (!bodies_[b].kinematic) body_force(static_cast<int>(b), f[b], tau[b]);
   if (options_.hinge_friction != 0) {
     for (const Row& r : rows_) {
       const double t = options_.hinge_friction * (state_[r.b].w - state_[r.a].w);
@@ -138,6 +143,32 @@ void World::drift(double h) {
   mark_state_changed();
 }
 
+// kick(h_kick) then drift(h) with the forces at the current state. Without hinge friction or users' forces a body's
+// force depends on its own state only, so the three stages are one pass over the bodies (the same arithmetic).
+void World::kick_drift(double h_kick, double h) {
+  if (options_.hinge_friction != 0 || !forces_.empty()) {
+    accumulate_forces(force_, torque_, h);
+    kick(h_kick, force_, torque_);
+    drift(h);
+    return;
+  }
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    const Body& body = bodies_[b];
+    if (body.kinematic) continue;
+    Vec2 f;
+    double tau;
+    body_force(static_cast<int>(b), f, tau);
+    BodyState& s = state_[b];
+    s.v += (h_kick * body.inv_mass) * f;
+    s.w += h_kick * body.inv_inertia * tau;
+    const double dth = h * s.w;
+    s.x += h * s.v;
+    s.th += dth;
+    s.q = (s.q * rotation_of_small_angle(dth)).renormalised();
+  }
+  mark_state_changed();
+}
+
 void World::step(double h) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step: the time step must be a positive number");
   ensure_built();
@@ -161,16 +192,14 @@ void World::step_shake(double h, bool rattle) {
   // SHAKE turns whatever position error it removes into velocity (divided by h). An error the step did not
   // make (a join, the leftover of a restructure) must not: it is projected away first, positions only. Without
   // this a short step (event location takes steps of 1e-10 s) turns a 1e-12 m leftover into metres per second.
-  if (residuals(c_) > options_.tolerance) {
-    world_anchors(ua0_, ub0_);
+  if (position_residual() > options_.tolerance) {
+    start_anchors();
     factor_system(ua0_, ub0_);
     solve_positions(ua0_, ub0_, 0.0);
   }
-  world_anchors(ua0_, ub0_);
+  start_anchors();
   if (factor_version_ != state_version_) factor_system(ua0_, ub0_);
-  accumulate_forces(force_, torque_, h);
-  kick(rattle ? 0.5 * h : h, force_, torque_);
-  drift(h);
+  kick_drift(rattle ? 0.5 * h : h, h);
   drive_kinematic(t1);
   stats_.converged = solve_positions(ua0_, ub0_, 1.0 / h);
   if (rattle) {
@@ -248,7 +277,7 @@ void World::step_explicit(double h, bool rk4) {
   drive_kinematic(t1);
   t_ = t1;
   // Post-stabilisation: back onto C(q) = 0 along the mass-metric normal, then onto G v = 0.
-  world_anchors(ua0_, ub0_);
+  start_anchors();
   factor_system(ua0_, ub0_);
   stats_.converged = solve_positions(ua0_, ub0_, 0.0);
   project_velocities();

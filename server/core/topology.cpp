@@ -63,6 +63,7 @@ int World::add_part(const PartDef& def) {
   body.anchor_part = index;
   bodies_.push_back(body);
   body_parts_.push_back({index});
+  if (!def.kinematic) free_bodies_.push_back(part.body);
   BodyState s;
   s.x = def.position + q * com;
   s.th = def.angle;
@@ -153,7 +154,7 @@ Restructure World::combine(int pa, int pb) {
   // a velocity kick. Velocities: a projection in the mass metric, i.e. the perfectly inelastic meeting of the
   // two particles; its impulses are internal, so free bodies keep their momentum.
   if (result.kind == JointKind::Hinge) {
-    world_anchors(ua0_, ub0_);
+    start_anchors();
     factor_system(ua0_, ub0_);
     solve_positions(ua0_, ub0_, 0.0);
   }
@@ -238,6 +239,7 @@ void World::set_body_from_parts(int b, const std::vector<int>& parts, const std:
   }
   body.inv_mass = body.kinematic ? 0 : 1 / body.mass;
   body.inv_inertia = body.kinematic ? 0 : 1 / body.inertia;
+  body.single_part = parts.size() == 1;
   for (int i : parts) {
     Part& p = parts_[i];
     p.body = b;
@@ -332,6 +334,11 @@ void World::rebuild() {
     r.rb = B.rel_x + B.rel_q * particles_[qb].local;
   }
   rows_ = std::move(rows);
+  std::vector<char> in_row(bodies_.size(), 0);
+  for (const Row& r : rows_) in_row[r.a] = in_row[r.b] = 1;
+  free_bodies_.clear();
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (!bodies_[b].kinematic && !in_row[b]) free_bodies_.push_back(static_cast<int>(b));
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
   ++structure_;

@@ -206,6 +206,7 @@ class World {
   struct Body {
     double mass = 0, inertia = 0, inv_mass = 0, inv_inertia = 0;
     bool kinematic = false;
+    bool single_part = true;  // one part: its frame is the body frame (the common case, no loop over parts)
     int anchor_part = -1;  // the part whose frame is the body frame; a driven part if the body is kinematic
   };
   // One hinge in the solver's order: body a, body b, anchors in the body frames. Rows k-1 and k share body
@@ -230,6 +231,34 @@ class World {
 
   // constraints.cpp
   void world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const;
+  void start_anchors();  // ua0_, ub0_ at the current state (kept from the last velocity projection when still valid)
+  Vec2 row_residual(const Row& r) const {
+    const BodyState& a = state_[r.a];
+    const BodyState& b = state_[r.b];
+    return (a.x + a.q * r.ra) - (b.x + b.q * r.rb);
+  }
+  double position_residual();  // residuals(c_), or the last solve's when the positions have not changed since
+  // q += W (f, tau) for one dynamic body, f and tau its sums of row multipliers and their moments; with
+  // velocity_scale = 1/h the same change is made to its velocity (SHAKE: the multipliers are the step's impulses).
+  // Inline: it is the innermost work of every Newton iteration.
+  [[gnu::always_inline]] void correct_body(int b, const Vec2& f, double tau, double velocity_scale) {
+    const Body& body = bodies_[b];
+    BodyState& s = state_[b];
+    const Vec2 dx = body.inv_mass * f;
+    const double dth = body.inv_inertia * tau;
+    s.x += dx;
+    s.th += dth;
+    s.q = (s.q * rotation_of_small_angle(dth)).renormalised();
+    s.v += velocity_scale * dx;
+    s.w += velocity_scale * dth;
+  }
+  double forward_residual(const BlockTridiag& sys);
+  double correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                             double velocity_scale);
+  void factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0);
+  double newton_iteration(bool forward, bool& exact, double res, const std::vector<Vec2>& ua0,
+                          const std::vector<Vec2>& ub0, double velocity_scale);
+  double linesearch_iteration(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, double velocity_scale);
   void build_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub, BlockTridiag& sys) const;
   void factor_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub);
   void build_newton_system(const std::vector<Vec2>& ua, const std::vector<Vec2>& ub,
@@ -243,8 +272,10 @@ class World {
   // step.cpp
   void drive_kinematic(double t);
   void accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const;
+  void body_force(int b, Vec2& f, double& tau) const;
   void kick(double h, const std::vector<Vec2>& f, const std::vector<double>& tau);
   void drift(double h);
+  void kick_drift(double h_kick, double h);
   void step_shake(double h, bool rattle);
   void step_explicit(double h, bool rk4);
   void mark_state_changed() { ++state_version_; }
@@ -282,6 +313,12 @@ class World {
   std::vector<double> kin_alpha_;
 
   bool has_welds_ = false;
+  std::vector<int> free_bodies_;  // dynamic bodies in no hinge row (the row sweeps do not reach them)
+
+  // State versions at which ua0_/ub0_ and residual_ were computed: a step that starts where the last one ended
+  // reuses them instead of another pass over the chain.
+  std::uint64_t anchors_version_ = 0, residual_version_ = 0;
+  double residual_ = 0;
 
   // scratch, kept to avoid allocation in the step
   std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;
