@@ -36,35 +36,52 @@ ladder_msg_Command poke_at(int block, double jx, double jy, double px, double py
   c.d = py;
   return c;
 }
-ladder_msg_Command push(int block, double fx, double fy, double duration, double lx, double ly) {
+ladder_msg_Command push(int block, double fx, double fy, double duration) {
   ladder_msg_Command c = make(ladder_msg_PUSH);
   c.block = block;
   c.a = fx;
   c.b = fy;
-  c.c = lx;
-  c.d = ly;
   c.e = duration;
-  c.has_point = true;
   return c;
 }
-ladder_msg_Command grab(int block, double tx, double ty, double lx, double ly, double stiffness) {
+ladder_msg_Command push_at(int block, double fx, double fy, double duration, double lx, double ly) {
+  ladder_msg_Command c = push(block, fx, fy, duration);
+  c.has_point = true;
+  c.c = lx;
+  c.d = ly;
+  return c;
+}
+ladder_msg_Command grab(int block) {
   ladder_msg_Command c = make(ladder_msg_GRAB);
   c.block = block;
-  c.a = tx;
-  c.b = ty;
-  c.c = lx;
-  c.d = ly;
-  c.e = stiffness;
-  c.has_point = true;
   return c;
 }
-ladder_msg_Command drag(double tx, double ty) {
+ladder_msg_Command grab_to(int block, double tx, double ty) {
+  ladder_msg_Command c = grab(block);
+  c.has_target = true;
+  c.a = tx;
+  c.b = ty;
+  return c;
+}
+ladder_msg_Command drag(int block, double tx, double ty) {
   ladder_msg_Command c = make(ladder_msg_DRAG);
+  c.block = block;
+  c.has_target = true;
   c.a = tx;
   c.b = ty;
   return c;
 }
-ladder_msg_Command release() { return make(ladder_msg_RELEASE); }
+ladder_msg_Command drag_pose(int block, double tx, double ty, double angle) {
+  ladder_msg_Command c = drag(block, tx, ty);
+  c.has_angle = true;
+  c.f = angle;
+  return c;
+}
+ladder_msg_Command release(int block) {
+  ladder_msg_Command c = make(ladder_msg_RELEASE);
+  c.block = block;
+  return c;
+}
 ladder_msg_Command break_hinge(int hinge) {
   ladder_msg_Command c = make(ladder_msg_BREAK_HINGE);
   c.hinge = hinge;
@@ -125,23 +142,23 @@ Client::Client(int domain, std::string sim_id, std::string client_id)
 void Client::poll() {
   ack_r_.take([&](const ladder_msg_CommandAck& a, const dds_sample_info_t&) {
     if (text_of(a.sim_id) != sim_id_ || text_of(a.client_id) != client_id_) return;
-    acks_[a.command_id] = {a.command_id, a.accepted, text_of(a.reason), a.sim_time, a.step};
+    acks_[a.command_id] = {a.command_id, a.accepted, text_of(a.reason), a.sim_time, a.step, a.command_seq};
     ++acks_received_;
   });
-  state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t&) {
+  state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
     State& st = state_.emplace();
+    st.latency = 1e-9 * static_cast<double>(dds_time() - info.source_timestamp);
     st.generation = s.generation;
     st.seq = s.seq;
     st.step = s.step;
+    st.commands_applied = s.commands_applied;
     st.sim_time = s.sim_time;
     st.energy = s.energy;
     st.paused = s.paused;
     st.blocks.assign(s.blocks._buffer, s.blocks._buffer + s.blocks._length);
     st.hinges.assign(s.hinges._buffer, s.hinges._buffer + s.hinges._length);
-    st.grabbed_block = s.grabbed_block;
-    st.grab_target_x = s.grab_target_x;
-    st.grab_target_y = s.grab_target_y;
+    st.grips.assign(s.grips._buffer, s.grips._buffer + s.grips._length);
     ++state_count_;
   });
   scene_r_.take([&](const ladder_msg_SceneInfo& s, const dds_sample_info_t&) {
@@ -215,8 +232,7 @@ Ack Client::call(const ladder_msg_Command& c, Millis timeout) {
 }
 
 std::optional<State> Client::wait_state(const std::function<bool(const State&)>& pred, Millis timeout) {
-  const std::uint64_t seen = state_count_;
-  if (wait(timeout, [&] { return state_count_ > seen && pred(*state_); })) return state_;
+  if (wait(timeout, [&] { return state_.has_value() && pred(*state_); })) return state_;
   return std::nullopt;
 }
 

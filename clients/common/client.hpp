@@ -24,6 +24,7 @@ struct Ack {
   std::string reason;
   double sim_time = 0;
   std::uint64_t step = 0;
+  std::uint64_t command_seq = 0;  // a State with commands_applied >= this shows the command's effect
 };
 
 struct Event {
@@ -37,13 +38,13 @@ struct Event {
 
 struct State {
   std::uint32_t generation = 0;
-  std::uint64_t seq = 0, step = 0;
+  std::uint64_t seq = 0, step = 0, commands_applied = 0;
   double sim_time = 0, energy = 0;
   bool paused = false;
   std::vector<ladder_msg_Pose> blocks;
   std::vector<ladder_msg_Hinge> hinges;
-  int grabbed_block = -1;
-  double grab_target_x = 0, grab_target_y = 0;
+  std::vector<ladder_msg_Grip> grips;
+  double latency = 0;  // [s] from the server's write to our take (same host: one clock; across hosts: clock offset)
 };
 
 struct SceneInfo {
@@ -61,10 +62,13 @@ ladder_msg_Command make(ladder_msg_CommandKind kind);
 ladder_msg_Command tip();
 ladder_msg_Command poke(int block, double jx, double jy);                       // at the block's centre
 ladder_msg_Command poke_at(int block, double jx, double jy, double px, double py);  // at a world point
-ladder_msg_Command push(int block, double fx, double fy, double duration, double lx = 0, double ly = 0);
-ladder_msg_Command grab(int block, double tx, double ty, double lx = 0, double ly = 0, double stiffness = 0);
-ladder_msg_Command drag(double tx, double ty);
-ladder_msg_Command release();
+ladder_msg_Command push(int block, double fx, double fy, double duration);             // at the centre
+ladder_msg_Command push_at(int block, double fx, double fy, double duration, double lx, double ly);  // block frame
+ladder_msg_Command grab(int block);                                 // held where it is, by its centre
+ladder_msg_Command grab_to(int block, double tx, double ty);        // centre pulled toward a world point
+ladder_msg_Command drag(int block, double tx, double ty);
+ladder_msg_Command drag_pose(int block, double tx, double ty, double angle);
+ladder_msg_Command release(int block);
 ladder_msg_Command break_hinge(int hinge);
 ladder_msg_Command join_hinge(int hinge);
 ladder_msg_Command pause();
@@ -89,7 +93,8 @@ class Client {
   // send + wait_ack; throws std::runtime_error at the timeout.
   Ack call(const ladder_msg_Command& c, Millis timeout = Millis(5000));
 
-  // Waits for the first State (newer than what was seen when called) that satisfies pred.
+  // Waits until the latest State (already received or new) satisfies pred, and returns it. For "a newer state than
+  // X", put that in pred (e.g. st.seq > x.seq).
   std::optional<State> wait_state(const std::function<bool(const State&)>& pred, Millis timeout);
   std::optional<SceneInfo> wait_scene_info(Millis timeout);
   std::optional<ladder_msg_Stats> wait_stats(const std::function<bool(const ladder_msg_Stats&)>& pred, Millis timeout);

@@ -1,7 +1,6 @@
 // Lock-free hand-off of the latest state from the physics thread to the publishing thread.
 #pragma once
 
-#include "core/geometry.hpp"
 #include "ladder.h"
 
 #include <atomic>
@@ -13,13 +12,12 @@ namespace ladder::daemon {
 // One published state, in the wire layout so that the writer can lend its arrays to DDS without a copy.
 struct StateFrame {
   std::uint32_t generation = 0;
-  std::uint64_t step = 0;
+  std::uint64_t step = 0, commands_applied = 0;
   double t = 0, energy = 0;
   bool paused = false;
   std::vector<ladder_msg_Pose> blocks;
   std::vector<ladder_msg_Hinge> hinges;
-  int grabbed = -1;
-  core::Vec2 target{0, 0};
+  std::vector<ladder_msg_Grip> grips;
 };
 
 // A triple buffer: one producer fills back() and publish()es it, one consumer take()s the newest published value.

@@ -89,12 +89,13 @@ Percentiles percentiles(std::vector<double>& v) {
   return p;
 }
 
-void fill_frame(const Session& s, StateFrame& f) {
+void fill_frame(const Session& s, std::uint64_t commands_applied, StateFrame& f) {
   const model::Ladder& l = s.sim().ladder();
   f.generation = s.generation();
   f.step = s.sim().steps();
   f.t = s.sim().time();
   f.paused = s.paused();
+  f.commands_applied = commands_applied;
   f.energy = l.energy();
   const auto n = static_cast<std::size_t>(l.blocks());
   f.blocks.resize(n);
@@ -110,9 +111,9 @@ void fill_frame(const Session& s, StateFrame& f) {
                                                             : ladder_msg_BROKEN,
                    static_cast<std::uint32_t>(h.flips)};
   }
-  const model::Ladder::Grip* g = l.grip();
-  f.grabbed = g ? g->block : -1;
-  f.target = g ? g->target : core::Vec2::Zero();
+  f.grips.clear();
+  for (const model::Ladder::Grip& g : l.grips())
+    f.grips.push_back({g.block, g.target.x(), g.target.y(), g.hold_angle, g.angle});
 }
 
 SceneOut scene_out(const Session& s) {
@@ -207,6 +208,7 @@ void Physics::take_commands() {
     a.sim_time = session_.generation() != scene_generation_ ? session_.sim().time() : t;
     a.step = session_.generation() != scene_generation_ ? session_.sim().steps() : step;
     (r.accepted ? accepted_ : refused_)++;
+    a.command_seq = accepted_ + refused_;
     if (r.accepted)
       spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
     else
@@ -282,7 +284,7 @@ void Physics::collect_events() {
 
 void Physics::publish_state() {
   dirty_ = false;
-  fill_frame(session_, sh_.state.back());
+  fill_frame(session_, accepted_ + refused_, sh_.state.back());
   if (sh_.state.publish()) sh_.states_dropped.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -498,15 +500,15 @@ void Io::write_state() {
   m.step = f->step;
   m.sim_time = f->t;
   m.paused = f->paused;
+  m.commands_applied = f->commands_applied;
   m.energy = f->energy;
   // Borrowed buffers: DDS serialises them in write() and must not free them.
   m.blocks._buffer = const_cast<ladder_msg_Pose*>(f->blocks.data());
   m.blocks._length = m.blocks._maximum = static_cast<std::uint32_t>(f->blocks.size());
   m.hinges._buffer = const_cast<ladder_msg_Hinge*>(f->hinges.data());
   m.hinges._length = m.hinges._maximum = static_cast<std::uint32_t>(f->hinges.size());
-  m.grabbed_block = f->grabbed;
-  m.grab_target_x = f->target.x();
-  m.grab_target_y = f->target.y();
+  m.grips._buffer = const_cast<ladder_msg_Grip*>(f->grips.data());
+  m.grips._length = m.grips._maximum = static_cast<std::uint32_t>(f->grips.size());
   state_w_.write(m);
   sh_.states_published.fetch_add(1, std::memory_order_relaxed);
 }

@@ -130,7 +130,7 @@ Outcome Session::apply(const ladder_msg_Command& c) {
       case ladder_msg_PUSH: {
         scene::TimedCommand t = timed("push");
         t.force = bounded(c.a, c.b, "the force", limits_.max_force, "N", "commands.max_force");
-        t.at = vec(c.c, c.d, "the point");
+        t.at = c.has_point ? vec(c.c, c.d, "the point") : Vec2::Zero();
         t.has_at = true;
         finite(c.e, "the duration");
         if (!(c.e > 0 && c.e <= limits_.max_duration))
@@ -144,19 +144,29 @@ Outcome Session::apply(const ladder_msg_Command& c) {
         break;
       }
       case ladder_msg_GRAB: {
-        const Vec2 target = within_reach(c.a, c.b, "the target", limits_.reach);
-        const Vec2 local = vec(c.c, c.d, "the point");
+        model::Ladder::Grip g;
+        g.local = c.has_point ? vec(c.c, c.d, "the point") : Vec2::Zero();
         finite(c.e, "the stiffness");
+        g.stiffness = c.e;
         l.check_block(c.block);
-        on_block(l, c.block, local, "the point");
-        l.grab(c.block, local, target, c.e);
+        g.block = c.block;
+        on_block(l, c.block, g.local, "the point");
+        g.target = c.has_target ? within_reach(c.a, c.b, "the target", limits_.reach)
+                                : l.block_centre(c.block) + l.world().part_rotation(c.block) * g.local;
+        if (c.has_angle) finite(c.f, "the angle");
+        g.hold_angle = c.has_angle;
+        g.angle = c.f;
+        l.grab(g);
         break;
       }
-      case ladder_msg_DRAG:
-        l.drag(within_reach(c.a, c.b, "the target", limits_.reach));
+      case ladder_msg_DRAG: {
+        const Vec2 target = within_reach(c.a, c.b, "the target", limits_.reach);
+        if (c.has_angle) finite(c.f, "the angle");
+        l.drag(c.block, target, c.has_angle ? &c.f : nullptr);
         break;
+      }
       case ladder_msg_RELEASE:
-        l.release();
+        l.release(c.block);
         break;
       case ladder_msg_BREAK_HINGE:
       case ladder_msg_JOIN_HINGE: {

@@ -252,7 +252,7 @@ void Ladder::step_guarded(double h, int depth) {
 }
 
 void Ladder::advance(double h) {
-  apply_grip(h);
+  apply_grips(h);
   if (!spec_.logic) {
     step_guarded(h, 0);
     return;
@@ -487,39 +487,63 @@ void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double 
   world_.add_force(block, local_point, force, time() + duration);
 }
 
-void Ladder::grab(int block, const Vec2& local_point, const Vec2& target, double stiffness) {
-  check_block(block);
-  if (block == 0 && held()) throw std::invalid_argument("block 0 is held by the hand; grab another block");
-  if (!std::isfinite(stiffness) || stiffness < 0)
+void Ladder::grab(const Grip& g) {
+  check_block(g.block);
+  if (g.block == 0 && held()) throw std::invalid_argument("block 0 is held by the hand; grab another block");
+  if (!std::isfinite(g.stiffness) || g.stiffness < 0)
     throw std::invalid_argument("grab: the stiffness must be >= 0 (0 for the default)");
-  grip_ = {block, local_point, target, stiffness, 0};
+  const auto it = std::lower_bound(grips_.begin(), grips_.end(), g.block,
+                                   [](const Grip& a, int b) { return a.block < b; });
+  if (it != grips_.end() && it->block == g.block)
+    *it = g;
+  else
+    grips_.insert(it, g);
 }
 
-void Ladder::drag(const Vec2& target) {
-  if (grip_.block < 0) throw std::invalid_argument("nothing is grabbed; grab a block first");
-  grip_.target = target;
+Ladder::Grip& Ladder::grip_of(int block) {
+  for (Grip& g : grips_)
+    if (g.block == block) return g;
+  throw std::invalid_argument(grips_.empty() ? "nothing is grabbed; grab a block first"
+                                             : "block " + std::to_string(block) + " is not grabbed");
 }
 
-void Ladder::release() {
-  if (grip_.block < 0) throw std::invalid_argument("nothing is grabbed");
-  grip_ = {};
+void Ladder::drag(int block, const Vec2& target, const double* angle) {
+  Grip& g = grip_of(block);
+  g.target = target;
+  if (angle) {
+    g.hold_angle = true;
+    g.angle = *angle;
+  }
 }
 
-// The spring-damper of the grip as a force held over the next step. With the block's mass m, natural frequency
-// w and critical damping c = 2 m w; an explicit step of a spring is stable while w h < 2, and 0.2 keeps it
-// accurate. A user-given stiffness is capped by the same bound (the chain below only adds mass, so the block
-// alone is the stiffest case).
-void Ladder::apply_grip(double h) {
-  if (grip_.block < 0) return;
-  const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[grip_.block];
-  const double w_max = 0.2 / h;
-  const double w = std::min(grip_.stiffness > 0 ? std::sqrt(grip_.stiffness / m) : 100.0, w_max);
-  const double k = m * w * w, c = 2 * m * w;
-  const int part = grip_.block;
-  const Vec2 r = world_.part_rotation(part) * grip_.local;
-  const Vec2 p = world_.part_position(part) + r;
-  const Vec2 v = world_.part_velocity(part) + world_.part_omega(part) * Vec2(-r.y(), r.x());
-  world_.add_force(part, grip_.local, k * (grip_.target - p) - c * v, time() + h);
+void Ladder::release(int block) {
+  Grip& g = grip_of(block);
+  grips_.erase(grips_.begin() + (&g - grips_.data()));
+}
+
+// Each grip as forces held over the next step. With the block's mass m (moment of inertia I), natural frequency
+// w, stiffness m w^2 (I w^2) and critical damping 2 m w (2 I w). An explicit step of a spring is stable while
+// w h < 2, and 0.2 keeps it accurate; the chain attached to the block only adds inertia, so the block alone is the
+// stiffest case. The torque is applied as a couple at the block's two ends.
+void Ladder::apply_grips(double h) {
+  for (const Grip& g : grips_) {
+    const int part = g.block;
+    const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[g.block];
+    const double w = std::min(g.stiffness > 0 ? std::sqrt(g.stiffness / m) : 100.0, 0.2 / h);
+    const core::Rot q = world_.part_rotation(part);
+    const Vec2 r = q * g.local;
+    const Vec2 p = world_.part_position(part) + r;
+    const double omega = world_.part_omega(part);
+    const Vec2 v = world_.part_velocity(part) + omega * Vec2(-r.y(), r.x());
+    world_.add_force(part, g.local, m * w * w * (g.target - p) - 2 * m * w * v, time() + h);
+    if (!g.hold_angle) continue;
+    const double inertia = m * (spec_.length * spec_.length + spec_.thickness * spec_.thickness) / 12;
+    const double torque = inertia * w * w * (g.angle - world_.part_angle(part)) - 2 * inertia * w * omega;
+    const double a = 0.5 * spec_.length;
+    const Vec2 arm = q * Vec2(a, 0), f = torque / (2 * a * a) * Vec2(-arm.y(), arm.x());
+    world_.add_force(part, Vec2(a, 0), f, time() + h);
+    world_.add_force(part, Vec2(-a, 0), -f, time() + h);
+  }
 }
 
 std::vector<Ribbon> Ladder::ribbons() const {

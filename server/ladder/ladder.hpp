@@ -109,20 +109,23 @@ class Ladder {
   void join_hinge(int k);
   double poke(int block, const Vec2& point, const Vec2& impulse);  // impulse at a world point; returns dKE
   void push(int block, const Vec2& local_point, const Vec2& force, double duration);
-  // A user's hand: the point `local_point` of `block` (in the block's frame) is pulled toward the world point
-  // `target` by a spring-damper. stiffness <= 0 picks a critically damped spring of natural frequency 100 rad/s
-  // for the block alone (capped at 0.2 / dt, so an explicit step stays stable). One grip at a time: a new grab
-  // replaces the last. The force is evaluated at the start of each step and held over it.
-  void grab(int block, const Vec2& local_point, const Vec2& target, double stiffness);
-  void drag(const Vec2& target);  // moves the grip's target
-  void release();
+  // A user's hand on a block: the point `local` of the block (in its frame) is pulled toward the world point
+  // `target` by a critically damped spring-damper and, when `hold_angle`, the block is turned toward `angle` by a
+  // torsional one. stiffness <= 0 picks a natural frequency of 100 rad/s for the block alone; any frequency is
+  // capped at 0.2 / dt so that the explicit evaluation stays stable. Several blocks may be held at once (one grip
+  // per block; grabbing a held block again replaces its grip). The forces are evaluated at the start of each step
+  // and held over it.
   struct Grip {
     int block = -1;
     Vec2 local{0, 0}, target{0, 0};
-    double stiffness = 0;  // [N/m]; 0 = the default, fixed at the first step
-    double damping = 0;    // [N s/m]
+    bool hold_angle = false;
+    double angle = 0;      // [rad] target angle when hold_angle
+    double stiffness = 0;  // [N/m]; 0 = the default
   };
-  const Grip* grip() const { return grip_.block >= 0 ? &grip_ : nullptr; }
+  void grab(const Grip& grip);
+  void drag(int block, const Vec2& target, const double* angle = nullptr);  // moves a grip's target
+  void release(int block);
+  const std::vector<Grip>& grips() const { return grips_; }
   // Changes the engine options live (the caller validates them).
   void set_options(const core::Options& options);
 
@@ -157,7 +160,7 @@ class Ladder {
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
   void step_guarded(double h, int depth);
-  void apply_grip(double h);
+  void apply_grips(double h);
 
   LadderSpec spec_;
   core::World world_;
@@ -168,7 +171,8 @@ class Ladder {
   std::vector<Event> events_;
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
-  Grip grip_;
+  std::vector<Grip> grips_;  // sorted by block
+  Grip& grip_of(int block);
 };
 
 }  // namespace ladder::model

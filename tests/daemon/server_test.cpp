@@ -60,14 +60,17 @@ class Server : public ::testing::Test {
   }
 
   // Sends c, expects a refusal whose reason contains `why`, and checks that the next state equals `before`.
-  void expect_refusal(const ladder_msg_Command& command, const std::string& why) {
+  client::Ack expect_refusal(const ladder_msg_Command& command, const std::string& why) {
     const client::Ack a = c().call(command, kAnswer);
     EXPECT_FALSE(a.accepted) << "accepted, but expected a refusal containing '" << why << "'";
     EXPECT_NE(a.reason.find(why), std::string::npos) << "reason: " << a.reason;
+    return a;
   }
+  // The state after the command's turn (a refused command gets a fresh state too) must equal `before`.
   void expect_refused(const ladder_msg_Command& command, const std::string& why, const client::State& before) {
-    expect_refusal(command, why);
-    const auto after = c().wait_state([](const client::State&) { return true; }, kAnswer);
+    const client::Ack a = expect_refusal(command, why);
+    const auto after = c().wait_state([&](const client::State& st) { return st.commands_applied >= a.command_seq; },
+                                      kAnswer);
     ASSERT_TRUE(after.has_value());
     EXPECT_EQ(after->step, before.step);
     EXPECT_EQ(after->sim_time, before.sim_time);
@@ -80,12 +83,17 @@ class Server : public ::testing::Test {
       EXPECT_EQ(after->hinges[k].status, before.hinges[k].status) << "hinge " << k;
       EXPECT_EQ(after->hinges[k].corner, before.hinges[k].corner) << "hinge " << k;
     }
-    EXPECT_EQ(after->grabbed_block, before.grabbed_block);
+    EXPECT_EQ(after->grips.size(), before.grips.size());
   }
 
-  void expect_accepted(const ladder_msg_Command& command) {
+  // Returns the state that shows the command's effect.
+  client::State expect_accepted(const ladder_msg_Command& command) {
     const client::Ack a = c().call(command, kAnswer);
     EXPECT_TRUE(a.accepted) << a.reason;
+    const auto s = c().wait_state([&](const client::State& st) { return st.commands_applied >= a.command_seq; },
+                                  kAnswer);
+    EXPECT_TRUE(s.has_value()) << "no state after the command";
+    return s.value_or(client::State{});
   }
 
   std::string sim_id_, log_path_;
@@ -105,7 +113,8 @@ TEST_F(Server, TipMakesTheRippleRunDownEveryHinge) {
   std::map<int, double> first_flip;  // hinge -> time of its first flip-flop
   const auto deadline = Clock::now() + Millis(20000);
   while (first_flip.size() < 5 && Clock::now() < deadline) {
-    c().wait_state([](const client::State&) { return true; }, Millis(200));
+    const std::uint64_t seen = c().latest_state() ? c().latest_state()->seq : 0;
+    c().wait_state([&](const client::State& st) { return st.seq > seen; }, Millis(200));
     for (const client::Event& e : c().take_events()) {
       if (e.kind == "flip_flop" && !first_flip.count(e.hinge)) first_flip[e.hinge] = e.t;
     }
@@ -164,13 +173,19 @@ TEST_F(Server, EveryCommandKindIsAcceptedWhenValid) {
   expect_accepted(cmd::poke(3, 0.001, 0));
   expect_accepted(cmd::poke_at(2, 0, 0.001, 0.0, -0.15));
   expect_accepted(cmd::push(4, 0.01, 0, 0.05));
-  expect_accepted(cmd::grab(5, 0.1, -0.3));
-  expect_accepted(cmd::drag(0.15, -0.3));
+  expect_accepted(cmd::grab(5));
+  expect_accepted(cmd::grab_to(3, 0.1, -0.2));
+  expect_accepted(cmd::drag_pose(5, 0.15, -0.3, 0.5));
   expect_accepted(cmd::step(50));
-  auto s = c().wait_state([](const client::State& st) { return st.grabbed_block == 5; }, kAnswer);
+  auto s = c().wait_state([](const client::State& st) { return st.grips.size() == 2; }, kAnswer);
   ASSERT_TRUE(s.has_value());
-  EXPECT_DOUBLE_EQ(s->grab_target_x, 0.15);
-  expect_accepted(cmd::release());
+  EXPECT_EQ(s->grips[0].block, 3);
+  EXPECT_EQ(s->grips[1].block, 5);
+  EXPECT_DOUBLE_EQ(s->grips[1].target_x, 0.15);
+  EXPECT_TRUE(s->grips[1].hold_angle);
+  EXPECT_DOUBLE_EQ(s->grips[1].angle, 0.5);
+  expect_accepted(cmd::release(3));
+  expect_accepted(cmd::release(5));
   expect_accepted(cmd::break_hinge(5));
   expect_accepted(cmd::join_hinge(5));
   expect_accepted(cmd::set("damping.linear=0.5"));
@@ -199,14 +214,21 @@ TEST_F(Server, InvalidCommandsAreRefusedWithAReasonAndChangeNothing) {
   expect_refused(cmd::poke(-1, 0.001, 0), "no block -1", s);
   expect_refused(cmd::poke(2, nan, 0), "not a finite number", s);
   expect_refused(cmd::push(2, inf, 0, 0.1), "not a finite number", s);
+  const client::State held = expect_accepted(cmd::grab(4));
+  ASSERT_EQ(held.grips.size(), 1u);
+  expect_refused(cmd::drag_pose(4, 0, -0.2, nan), "the angle is nan", held);
+  expect_refused(cmd::release(2), "block 2 is not grabbed", held);
+  expect_accepted(cmd::release(4));
   expect_refused(cmd::poke(2, 1e6, 0), "beyond the limit of 1 N s", s);
   expect_refused(cmd::push(2, 5000, 0, 0.1), "beyond the limit of 100 N", s);
   expect_refused(cmd::push(2, 1, 0, -1), "duration", s);
   expect_refused(cmd::poke_at(2, 0.001, 0, 5.0, 5.0), "outside the block", s);
-  expect_refused(cmd::grab(0, 0, 0), "held by the hand", s);
-  expect_refused(cmd::grab(3, 1e9, 0), "beyond the reach", s);
-  expect_refused(cmd::drag(0, 0), "nothing is grabbed", s);
-  expect_refused(cmd::release(), "nothing is grabbed", s);
+  expect_refused(cmd::grab(0), "held by the hand", s);
+  expect_refused(cmd::grab(9), "no block 9", s);
+  expect_refused(cmd::grab_to(3, 1e9, 0), "beyond the reach", s);
+  expect_refused(cmd::drag(3, 0, 0), "nothing is grabbed", s);
+  expect_refused(cmd::drag_pose(3, 0, 0, nan), "the angle is nan", s);
+  expect_refused(cmd::release(3), "nothing is grabbed", s);
   expect_refused(cmd::break_hinge(6), "no hinge 6", s);
   expect_refused(cmd::join_hinge(3), "is not broken", s);
   expect_refused(cmd::set("solver.tolerence=1e-9"), "solver.tolerance", s);  // did-you-mean
@@ -219,10 +241,9 @@ TEST_F(Server, InvalidCommandsAreRefusedWithAReasonAndChangeNothing) {
   // (A command kind outside the enum cannot be sent: Cyclone refuses to serialise it, and a receiver drops it.)
 
   // Break the bottom hinge, let block 5 fall away, and a join is refused with the distance.
-  expect_accepted(cmd::break_hinge(5));
-  expect_refused(cmd::break_hinge(5), "already broken", c().wait_state([](const client::State& st) {
-                   return st.hinges.size() == 6 && st.hinges[5].status == ladder_msg_BROKEN;
-                 }, kAnswer).value_or(s));
+  const client::State broken = expect_accepted(cmd::break_hinge(5));
+  ASSERT_EQ(broken.hinges[5].status, ladder_msg_BROKEN);
+  expect_refused(cmd::break_hinge(5), "already broken", broken);
   expect_accepted(cmd::step(300));
   const auto fallen = c().wait_state([&](const client::State& st) { return st.step == s.step + 300; }, kAnswer);
   ASSERT_TRUE(fallen.has_value());

@@ -1,0 +1,117 @@
+// ladder-server-bench: starts a real ladderd per configuration and measures it over DDS on loopback:
+// command-to-ack latency, tick lateness at the physics rate, and state delivery (rate, latency, gaps) to 1 and
+// 8 subscribers, for several ladder sizes. Prints one table row per configuration (docs/benchmarks.md).
+#include "client.hpp"
+#include "process.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using ladder::client::Client;
+using ladder::client::Millis;
+using Clock = std::chrono::steady_clock;
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
+}
+
+struct Delivery {
+  std::size_t states = 0, gaps = 0;
+  std::vector<double> latency_ms;
+};
+
+// One subscriber: counts the states it takes for `seconds`, their latency and the sequence numbers it missed.
+Delivery subscribe(int domain, const std::string& sim_id, double seconds) {
+  Client c(domain, sim_id, "sub");
+  Delivery d;
+  if (!c.wait_for_server(Millis(20000))) return d;
+  std::uint64_t last = 0;
+  const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  while (Clock::now() < end) {
+    const auto s = c.wait_state([&](const ladder::client::State& st) { return st.seq > last; }, Millis(100));
+    if (!s) continue;
+    if (last && s->seq > last + 1) d.gaps += s->seq - last - 1;
+    last = s->seq;
+    ++d.states;
+    d.latency_ms.push_back(1e3 * s->latency);
+  }
+  return d;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ladder-server-bench: ladderd over DDS on loopback, measured"};
+  std::vector<int> sizes{6, 1000, 10000, 100000}, subscribers{1, 8};
+  double seconds = 5;
+  int domain = 201, commands = 200;
+  std::string ladderd = std::string(LADDER_BINARY_DIR) + "/server/ladderd";
+  app.add_option("--blocks", sizes, "ladder sizes")->delimiter(',');
+  app.add_option("--subscribers", subscribers, "subscriber counts")->delimiter(',');
+  app.add_option("--seconds", seconds, "measuring time per configuration [s]");
+  app.add_option("--commands", commands, "commands sent one after another for the ack latency");
+  app.add_option("--domain", domain, "DDS domain id to use");
+  app.add_option("--ladderd", ladderd, "the server binary");
+  CLI11_PARSE(app, argc, argv);
+
+  std::printf("| N | subscribers | ack p50 ms | ack p99 ms | late p50 us | late p99 us | late max us | missed ticks "
+              "| rtf | states/s per sub | state lat p50 ms | p99 ms | gaps | step p50 us |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (int n : sizes) {
+    for (int subs : subscribers) {
+      const std::string sim_id = "bench-" + std::to_string(n) + "-" + std::to_string(subs);
+      std::fprintf(stderr, "N = %d, %d subscriber(s): starting ladderd...\n", n, subs);
+      ladder::test::Process server({ladderd, "--domain", std::to_string(domain), "--sim-id", sim_id, "--set",
+                                    "ladder.blocks=" + std::to_string(n), "--log-level", "warn"},
+                                   "/tmp/" + sim_id + ".log");
+      Client control(domain, sim_id, "control");
+      if (!control.wait_for_server(Millis(60000))) {
+        std::fprintf(stderr, "no server; its log:\n%s\n", server.log().c_str());
+        return 1;
+      }
+      // Subscribers in their own threads (each its own participant, as separate viewers would be).
+      std::vector<Delivery> delivered(static_cast<std::size_t>(subs));
+      std::vector<std::thread> threads;
+      for (int i = 0; i < subs; ++i)
+        threads.emplace_back([&, i] { delivered[static_cast<std::size_t>(i)] = subscribe(domain, sim_id, seconds); });
+      std::this_thread::sleep_for(Millis(500));
+      control.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(3000));  // start a fresh window
+      std::vector<double> ack_ms;
+      for (int i = 0; i < commands; ++i) {
+        const auto t0 = Clock::now();
+        control.call(ladder::client::cmd::set("damping.hinge=0"), Millis(10000));
+        ack_ms.push_back(1e3 * std::chrono::duration<double>(Clock::now() - t0).count());
+        std::this_thread::sleep_for(Millis(7));  // not in phase with the 1 ms tick
+      }
+      for (auto& t : threads) t.join();
+      const auto stats = control.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(3000));
+      std::vector<double> lat;
+      std::size_t states = 0, gaps = 0;
+      for (const Delivery& d : delivered) {
+        lat.insert(lat.end(), d.latency_ms.begin(), d.latency_ms.end());
+        states += d.states;
+        gaps += d.gaps;
+      }
+      const ladder_msg_Stats st = stats.value_or(ladder_msg_Stats{});
+      std::printf("| %d | %d | %.3f | %.3f | %.0f | %.0f | %.0f | %llu | %.2f | %.1f | %.2f | %.2f | %zu | %.0f |\n", n,
+                  subs, percentile(ack_ms, 0.5), percentile(ack_ms, 0.99), st.late_p50_us, st.late_p99_us,
+                  st.late_max_us, static_cast<unsigned long long>(st.missed_deadlines), st.real_time_factor,
+                  static_cast<double>(states) / subs / seconds, percentile(lat, 0.5), percentile(lat, 0.99), gaps,
+                  st.step_p50_us);
+      std::fflush(stdout);
+      server.signal(SIGTERM);
+      server.wait_exit(Millis(5000));
+    }
+  }
+  return 0;
+}
