@@ -34,7 +34,8 @@ class Server : public ::testing::Test {
   void start(std::vector<std::string> extra = {}) {
     const std::string name = test_name();
     // The pid makes a rerun's server distinct from a killed one that discovery still lists (until its lease ends).
-    sim_id_ = name + "-" + std::to_string(getpid());
+    // (sim ids are at most 64 characters, so a short name: the last 40 characters of the test's)
+    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
     for (char& ch : sim_id_)
       if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
     domain_ = domain_for(name);

@@ -1,0 +1,413 @@
+#include "commands.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+#include <sstream>
+
+namespace ladder::ctl {
+
+namespace {
+
+using client::Client;
+using client::Millis;
+namespace cmd = client::cmd;
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_interrupt(int) { g_interrupted = true; }
+
+// "X,Y" or "X,Y,THETA" -> numbers; CLI11 reports the ValidationError with the option's name.
+std::vector<double> numbers(const std::string& text, std::size_t min, std::size_t max, const std::string& what) {
+  std::vector<double> out;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    try {
+      std::size_t used = 0;
+      out.push_back(std::stod(part, &used));
+      if (used != part.size()) throw std::invalid_argument(part);
+    } catch (const std::exception&) {
+      throw CLI::ValidationError(what, "'" + text + "' is not a list of numbers like 0.01,0");
+    }
+  }
+  if (out.size() < min || out.size() > max)
+    throw CLI::ValidationError(what, "'" + text + "' needs " +
+                                         (min == max ? std::to_string(min) : std::to_string(min) + " or " +
+                                                                                 std::to_string(max)) +
+                                         " numbers separated by commas");
+  return out;
+}
+
+std::string format_ack(const client::Ack& a) {
+  char buf[96];
+  if (a.accepted) {
+    std::snprintf(buf, sizeof buf, "accepted at t = %.3f s (step %llu)", a.sim_time,
+                  static_cast<unsigned long long>(a.step));
+    return buf;
+  }
+  return "refused: " + a.reason;
+}
+
+std::string no_server(const Connection& c) {
+  char t[32];
+  std::snprintf(t, sizeof t, "%g", c.timeout);
+  return "no ladderd with sim id '" + c.sim_id + "' on DDS domain " + std::to_string(c.domain) + " after " + t +
+         " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
+}
+
+Millis timeout_of(const Connection& c) { return Millis(static_cast<long>(c.timeout * 1000)); }
+
+// Connects (once) and waits for the server; nullptr when it did not answer.
+Client* connect(Connection& c, std::unique_ptr<Client>& client) {
+  if (!client) client = std::make_unique<Client>(c.domain, c.sim_id);
+  if (!client->scene_info() && !client->wait_for_server(timeout_of(c))) {
+    std::cerr << "ladderctl: " << no_server(c) << "\n";
+    return nullptr;
+  }
+  return client.get();
+}
+
+int send(Client& client, const Connection& c, const ladder_msg_Command& command) {
+  const std::uint64_t id = client.send(command);
+  const auto ack = client.wait_ack(id, timeout_of(c));
+  if (!ack) {
+    std::cerr << "ladderctl: " << no_server(c) << " (no answer to the command)\n";
+    return kNoServer;
+  }
+  std::cout << format_ack(*ack) << "\n";
+  return ack->accepted ? kAccepted : kRefused;
+}
+
+std::string hinge_text(const ladder_msg_Hinge& h) {
+  return h.status == ladder_msg_BROKEN ? "broken" : h.status == ladder_msg_LOCKED ? "locked" : "hinged";
+}
+
+void print_event(const client::Event& e, bool json) {
+  if (json) {
+    std::printf("{\"seq\":%llu,\"t\":%.9g,\"kind\":\"%s\",\"hinge\":%d,\"energy_removed\":%.9g,\"detail\":\"%s\"}\n",
+                static_cast<unsigned long long>(e.seq), e.t, e.kind.c_str(), e.hinge, e.energy_removed,
+                e.detail.c_str());
+  } else {
+    std::printf("t = %9.4f s  %-15s hinge %-3d energy removed %.3g J%s%s\n", e.t, e.kind.c_str(), e.hinge,
+                e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
+  }
+}
+
+void print_stats(const ladder_msg_Stats& s, bool json) {
+  if (json) {
+    std::printf("{\"sim_time\":%.9g,\"steps\":%llu,\"real_time_factor\":%.4g,\"step_p50_us\":%.4g,"
+                "\"step_p99_us\":%.4g,\"step_max_us\":%.4g,\"late_p50_us\":%.4g,\"late_p99_us\":%.4g,"
+                "\"late_max_us\":%.4g,\"missed_deadlines\":%llu,\"solver_iterations\":%u,\"solver_residual\":%.3g,"
+                "\"energy\":%.9g,\"max_hinge_error\":%.3g,\"commands_received\":%llu,\"commands_accepted\":%llu,"
+                "\"commands_refused\":%llu,\"commands_rate_limited\":%llu,\"states_published\":%llu}\n",
+                s.sim_time, static_cast<unsigned long long>(s.steps), s.real_time_factor, s.step_p50_us,
+                s.step_p99_us, s.step_max_us, s.late_p50_us, s.late_p99_us, s.late_max_us,
+                static_cast<unsigned long long>(s.missed_deadlines), s.solver_iterations, s.solver_residual, s.energy,
+                s.max_hinge_error, static_cast<unsigned long long>(s.commands_received),
+                static_cast<unsigned long long>(s.commands_accepted),
+                static_cast<unsigned long long>(s.commands_refused),
+                static_cast<unsigned long long>(s.commands_rate_limited),
+                static_cast<unsigned long long>(s.states_published));
+  } else {
+    std::printf("t = %.3f s  real-time factor %.3f  step p50 %.1f us p99 %.1f us  tick late p99 %.0f us  missed %llu"
+                "  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited)\n",
+                s.sim_time, s.real_time_factor, s.step_p50_us, s.step_p99_us, s.late_p99_us,
+                static_cast<unsigned long long>(s.missed_deadlines), s.max_hinge_error, s.energy,
+                static_cast<unsigned long long>(s.commands_received),
+                static_cast<unsigned long long>(s.commands_refused),
+                static_cast<unsigned long long>(s.commands_rate_limited));
+  }
+}
+
+void print_state(const client::State& s, bool json) {
+  if (json) {
+    std::string blocks, hinges;
+    char buf[128];
+    for (const auto& b : s.blocks) {
+      std::snprintf(buf, sizeof buf, "%s[%.9g,%.9g,%.9g]", blocks.empty() ? "" : ",", b.x, b.y, b.theta);
+      blocks += buf;
+    }
+    for (const auto& h : s.hinges)
+      hinges += (hinges.empty() ? "\"" : ",\"") + hinge_text(h) + "\"";
+    std::printf("{\"seq\":%llu,\"step\":%llu,\"t\":%.9g,\"paused\":%s,\"energy\":%.9g,\"blocks\":[%s],"
+                "\"hinges\":[%s]}\n",
+                static_cast<unsigned long long>(s.seq), static_cast<unsigned long long>(s.step), s.sim_time,
+                s.paused ? "true" : "false", s.energy, blocks.c_str(), hinges.c_str());
+    return;
+  }
+  std::string flips;
+  for (std::size_t k = 1; k < s.hinges.size() && k <= 16; ++k) flips += std::to_string(s.hinges[k].flips) + " ";
+  std::printf("t = %9.4f s  step %-8llu %s energy %.6f J  flips per hinge: %s%s\n", s.sim_time,
+              static_cast<unsigned long long>(s.step), s.paused ? "paused " : "", s.energy, flips.c_str(),
+              s.hinges.size() > 17 ? "..." : "");
+}
+
+int watch(Client& client, const std::string& what, bool json, double rate) {
+  g_interrupted = false;
+  struct sigaction sa {}, old {};
+  sa.sa_handler = on_interrupt;
+  sigaction(SIGINT, &sa, &old);
+  std::uint64_t seen_state = 0, seen_stats = 0;
+  const auto min_gap = std::chrono::duration<double>(rate > 0 ? 1.0 / rate : 0);
+  auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
+  while (!g_interrupted) {
+    if (what == "events") {
+      client.wait_state([](const client::State&) { return false; }, Millis(100));
+      for (const client::Event& e : client.take_events()) print_event(e, json);
+    } else if (what == "stats") {
+      const auto s = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(200));
+      if (s && s->steps != seen_stats) {
+        seen_stats = s->steps;
+        print_stats(*s, json);
+      }
+    } else {
+      const auto s = client.wait_state([&](const client::State& st) { return st.seq > seen_state; }, Millis(200));
+      if (s && std::chrono::steady_clock::now() - last_print >= min_gap) {
+        seen_state = s->seq;
+        last_print = std::chrono::steady_clock::now();
+        print_state(*s, json);
+      }
+    }
+    std::fflush(stdout);
+  }
+  sigaction(SIGINT, &old, nullptr);
+  return kAccepted;
+}
+
+int status(Client& client, const Connection& c) {
+  const auto& info = client.scene_info();
+  const auto& state = client.latest_state();
+  const auto stats = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(1500));
+  if (!info || !state) {
+    std::cerr << "ladderctl: " << no_server(c) << "\n";
+    return kNoServer;
+  }
+  std::printf("server %s, sim id '%s' on DDS domain %d\n", info->server_version.c_str(), c.sim_id.c_str(), c.domain);
+  std::printf("scene '%s': %u blocks of %.0f x %.0f mm, top block %s\n", info->scene_name.c_str(), info->blocks,
+              info->length * 1e3, info->thickness * 1e3, info->top.c_str());
+  std::printf("sim time %.3f s, step %llu, %s, energy %.6f J\n", state->sim_time,
+              static_cast<unsigned long long>(state->step), state->paused ? "paused" : "running", state->energy);
+  std::printf("rates: physics %g Hz, states %g Hz, real-time factor set to %g\n", info->physics_rate,
+              info->publish_rate, info->real_time_factor);
+  if (stats) {
+    std::printf("measured over the last %.1f s: real-time factor %.3f, step p50 %.1f us p99 %.1f us max %.1f us,\n"
+                "  tick lateness p50 %.0f us p99 %.0f us max %.0f us, missed ticks %llu, largest hinge error %.2g m\n",
+                stats->window, stats->real_time_factor, stats->step_p50_us, stats->step_p99_us, stats->step_max_us,
+                stats->late_p50_us, stats->late_p99_us, stats->late_max_us,
+                static_cast<unsigned long long>(stats->missed_deadlines), stats->max_hinge_error);
+    std::printf("commands: %llu received, %llu accepted, %llu refused, %llu rate-limited\n",
+                static_cast<unsigned long long>(stats->commands_received),
+                static_cast<unsigned long long>(stats->commands_accepted),
+                static_cast<unsigned long long>(stats->commands_refused),
+                static_cast<unsigned long long>(stats->commands_rate_limited));
+  }
+  std::printf("live settings:\n");
+  std::istringstream lines(info->options);
+  for (std::string line; std::getline(lines, line);) std::printf("  %s\n", line.c_str());
+  return kAccepted;
+}
+
+// What the parsed subcommand does once connected.
+using Action = std::function<int(Client&, const Connection&)>;
+
+struct Values {
+  int index = 0;
+  std::uint32_t count = 1;
+  std::string impulse = "0.005,0", at, force, to, pose, key, value, scene, what;
+  double duration = 0, stiffness = 0, rate = 10;
+  bool json = false;
+};
+
+void add_connection(CLI::App& app, Connection& c) {
+  app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
+  app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
+  app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
+      ->check(CLI::PositiveNumber);
+}
+
+// Declares every subcommand; the chosen one's callback leaves its action in `action`.
+void declare(CLI::App& app, Values& v, Action& action) {
+  const auto simple = [&](const char* name, const char* help, ladder_msg_Command (*make)()) {
+    app.add_subcommand(name, help)->callback([&action, make] {
+      action = [make](Client& cl, const Connection& c) { return send(cl, c, make()); };
+    });
+  };
+  simple("tip", "turn the held top block over (the ripple starts)", &cmd::tip);
+  simple("pause", "stop the simulation clock", &cmd::pause);
+  simple("resume", "start the simulation clock again", &cmd::resume);
+  simple("reset", "back to the start of the current scene (live settings are kept)", &cmd::reset);
+
+  auto* poke = app.add_subcommand("poke", "an impulse on a block");
+  poke->add_option("BLOCK", v.index, "block number (0 is the top)")->required();
+  poke->add_option("--impulse", v.impulse, "impulse X,Y [N s] (default 0.005,0)");
+  poke->add_option("--at", v.at, "world point X,Y [m] where it strikes (default the block's centre)");
+  poke->callback([&] {
+    const auto j = numbers(v.impulse, 2, 2, "--impulse");
+    ladder_msg_Command c = cmd::poke(v.index, j[0], j[1]);
+    if (!v.at.empty()) {
+      const auto p = numbers(v.at, 2, 2, "--at");
+      c = cmd::poke_at(v.index, j[0], j[1], p[0], p[1]);
+    }
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* push = app.add_subcommand("push", "a force on a block for a while");
+  push->add_option("BLOCK", v.index, "block number")->required();
+  push->add_option("--force", v.force, "force X,Y [N]")->required();
+  push->add_option("--for", v.duration, "how long [s]")->required();
+  push->add_option("--at", v.at, "point X,Y in the block's frame [m] (default its centre)");
+  push->callback([&] {
+    const auto f = numbers(v.force, 2, 2, "--force");
+    ladder_msg_Command c = cmd::push(v.index, f[0], f[1], v.duration);
+    if (!v.at.empty()) {
+      const auto p = numbers(v.at, 2, 2, "--at");
+      c = cmd::push_at(v.index, f[0], f[1], v.duration, p[0], p[1]);
+    }
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* grab = app.add_subcommand("grab", "hold a block in a hand (a spring-damper); it stays where it is");
+  grab->add_option("BLOCK", v.index, "block number")->required();
+  grab->add_option("--to", v.to, "pull its centre toward world point X,Y [m] instead");
+  grab->add_option("--stiffness", v.stiffness, "spring stiffness [N/m] (default: 100 rad/s for the block alone)");
+  grab->callback([&] {
+    ladder_msg_Command c = cmd::grab(v.index);
+    if (!v.to.empty()) {
+      const auto t = numbers(v.to, 2, 2, "--to");
+      c = cmd::grab_to(v.index, t[0], t[1]);
+    }
+    c.e = v.stiffness;
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* drag = app.add_subcommand("drag", "move a grabbed block's target");
+  drag->add_option("BLOCK", v.index, "block number")->required();
+  drag->add_option("POSE", v.pose, "X,Y [m] or X,Y,THETA [m, m, rad]")->required();
+  drag->callback([&] {
+    const auto p = numbers(v.pose, 2, 3, "POSE");
+    const ladder_msg_Command c = p.size() == 3 ? cmd::drag_pose(v.index, p[0], p[1], p[2]) : cmd::drag(v.index, p[0], p[1]);
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* release = app.add_subcommand("release", "let go of a grabbed block");
+  release->add_option("BLOCK", v.index, "block number")->required();
+  release->callback([&] {
+    const ladder_msg_Command c = cmd::release(v.index);
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  for (const bool is_break : {true, false}) {
+    auto* h = app.add_subcommand(is_break ? "break" : "join",
+                                 is_break ? "break a hinge (the blocks below fall away)"
+                                          : "join a broken hinge again (its corners must be close)");
+    h->add_option("HINGE", v.index, "hinge k joins blocks k-1 and k; 0 is the top block's hold")->required();
+    h->callback([&, is_break] {
+      const ladder_msg_Command c = is_break ? cmd::break_hinge(v.index) : cmd::join_hinge(v.index);
+      action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+    });
+  }
+
+  auto* step = app.add_subcommand("step", "advance N steps (while paused)");
+  step->add_option("N", v.count, "number of steps")->required()->check(CLI::PositiveNumber);
+  step->callback([&] {
+    const ladder_msg_Command c = cmd::step(v.count);
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* set = app.add_subcommand("set", "change a live setting, e.g. set damping.linear 0.5 (see status)");
+  set->add_option("KEY", v.key, "sim.dt, sim.integrator, sim.gravity, solver.*, damping.*, "
+                                "server.real_time_factor or server.publish_rate")->required();
+  set->add_option("VALUE", v.value, "the new value, written as in a scene file")->required();
+  set->callback([&] {
+    const ladder_msg_Command c = cmd::set(v.key + "=" + v.value);
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  auto* load = app.add_subcommand("load", "start another scene from the server's scene directory");
+  load->add_option("SCENE", v.scene, "a scene name or file name, e.g. double-ripple")->required();
+  load->callback([&] {
+    const ladder_msg_Command c = cmd::load(v.scene);
+    action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
+  });
+
+  app.add_subcommand("status", "the scene, sim time, rates and step statistics, once")->callback([&] {
+    action = [](Client& cl, const Connection& k) { return status(cl, k); };
+  });
+
+  auto* w = app.add_subcommand("watch", "print a live stream until Ctrl-C");
+  w->add_option("WHAT", v.what, "events, stats or state")->required()->check(CLI::IsMember({"events", "stats", "state"}));
+  w->add_flag("--json", v.json, "one JSON object per line");
+  w->add_option("--rate", v.rate, "most state lines per second in text (default 10; 0 = every state)");
+  w->callback([&] {
+    action = [&v](Client& cl, const Connection&) { return watch(cl, v.what, v.json, v.rate); };
+  });
+}
+
+}  // namespace
+
+const std::vector<std::string>& command_names() {
+  static const std::vector<std::string> names{"tip",  "poke",  "push", "grab",   "drag", "release",
+                                              "break", "join", "pause", "resume", "step", "reset",
+                                              "set",  "load",  "status", "watch", "help", "quit"};
+  return names;
+}
+
+int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<client::Client>& client,
+        bool interactive) {
+  CLI::App app{"ladderctl: drive a ladderd server. Without a command: an interactive prompt.", "ladderctl"};
+  Values v;
+  Action action;
+  add_connection(app, conn);
+  app.fallthrough();  // inherited by the subcommands: --domain, --sim-id and --timeout may also come after one
+  declare(app, v, action);
+  app.require_subcommand(interactive ? 1 : 0, 1);
+  const Connection before = conn;
+  std::vector<std::string> reversed(args.rbegin(), args.rend());
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kAccepted : kUsage;
+  }
+  if (conn.domain != before.domain || conn.sim_id != before.sim_id) client.reset();
+  if (!action) return kNoCommand;
+  Client* c = connect(conn, client);
+  if (!c) return kNoServer;
+  return action(*c, conn);
+}
+
+std::vector<std::string> split_words(const std::string& line) {
+  std::vector<std::string> words;
+  std::string word;
+  bool in_word = false;
+  char quote = 0;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (quote) {
+      if (ch == quote) quote = 0;
+      else word += ch;
+    } else if (ch == '"' || ch == '\'') {
+      quote = ch;
+      in_word = true;
+    } else if (ch == '\\' && i + 1 < line.size()) {
+      word += line[++i];
+      in_word = true;
+    } else if (std::isspace(static_cast<unsigned char>(ch))) {
+      if (in_word) words.push_back(word);
+      word.clear();
+      in_word = false;
+    } else {
+      word += ch;
+      in_word = true;
+    }
+  }
+  if (in_word) words.push_back(word);
+  return words;
+}
+
+}  // namespace ladder::ctl

@@ -1,0 +1,14 @@
+// ladderctl: the console client of ladderd. `ladderctl COMMAND ...` sends one command and prints the server's
+// answer (exit code 0 accepted, 1 refused, 2 bad usage, 3 no server); `ladderctl` alone opens a prompt.
+#include "commands.hpp"
+#include "prompt.hpp"
+
+#include <memory>
+
+int main(int argc, char** argv) {
+  using namespace ladder::ctl;
+  Connection connection;
+  std::unique_ptr<ladder::client::Client> client;
+  const int code = run({argv + 1, argv + argc}, connection, client, false);
+  return code == kNoCommand ? prompt(connection) : code;
+}

@@ -1,0 +1,167 @@
+// ladderctl against a real ladderd over Cyclone DDS on loopback: exit codes, printed answers, the timeout
+// message, and the interactive prompt driven through a pseudo-terminal.
+#include "process.hpp"
+
+#include <gtest/gtest.h>
+
+#include <pty.h>
+#include <sys/select.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+namespace ladder::test {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+const std::string kLadderctl = std::string(LADDER_BINARY_DIR) + "/clients/ladderctl";
+
+struct Result {
+  int code = -1;
+  std::string output;
+};
+
+Result run(const std::string& args) {
+  FILE* pipe = popen((kLadderctl + " " + args + " 2>&1").c_str(), "r");
+  Result r;
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class Ladderctl : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = std::string("ctl-") + info->name();
+    domain_ = 1 + static_cast<int>(std::hash<std::string>{}(name) % 230);
+    sim_id_ = name + "-" + std::to_string(getpid());
+    server_.emplace(std::vector<std::string>{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
+                                             std::to_string(domain_), "--sim-id", sim_id_},
+                    std::string(LADDER_BINARY_DIR) + "/tests/" + name + ".log");
+    where_ = " --domain " + std::to_string(domain_) + " --sim-id " + sim_id_ + " --timeout 15";
+  }
+  // ladderctl ARGS against this test's server.
+  Result ctl(const std::string& args) { return run(args + where_); }
+
+  int domain_ = 0;
+  std::string sim_id_, where_;
+  std::optional<Process> server_;
+};
+
+TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
+  struct Case {
+    std::string args;
+    int code;
+    std::string words;
+  };
+  const Case cases[] = {
+      {"pause", 0, "accepted at t = "},
+      {"poke 3", 0, "accepted"},
+      {"poke 3 --impulse 0,0.002 --at 0.0065,-0.23", 0, "accepted"},
+      {"push 4 --force 0.01,0 --for 0.05", 0, "accepted"},
+      {"grab 5", 0, "accepted"},
+      {"drag 5 0.05,-0.4,0.3", 0, "accepted"},
+      {"grab 4 --to 0.02,-0.3 --stiffness 50", 0, "accepted"},
+      {"release 4", 0, "accepted"},
+      {"release 5", 0, "accepted"},
+      {"break 5", 0, "accepted"},
+      {"join 5", 0, "accepted"},
+      {"step 10", 0, "accepted"},
+      {"set damping.linear 0.2", 0, "accepted"},
+      {"set sim.gravity [0,-9.81]", 0, "accepted"},
+      {"tip", 0, "accepted"},
+      {"reset", 0, "accepted"},
+      {"load free-chain", 0, "accepted"},
+      {"resume", 0, "accepted"},
+      // Refusals: exit code 1 and the server's reason.
+      {"poke 9", 1, "refused: no block 9"},
+      {"join 1", 1, "refused: hinge 1 is not broken"},
+      {"set solver.tolerence 1e-9", 1, "did you mean 'solver.tolerance'"},
+      {"release 1", 1, "refused: nothing is grabbed"},
+      {"step 5", 1, "refused: step works while paused"},
+      {"tip", 1, "refused: the top block is not held"},  // free-chain's top block is pinned
+      {"load ../secret", 1, "refused: not permitted"},
+      // Usage errors: exit code 2, nothing sent.
+      {"poke", 2, "BLOCK is required"},
+      {"drag 3 1,x", 2, "is not a list of numbers"},
+      {"watch everything", 2, "WHAT"},
+      {"frobnicate", 2, "frobnicate"},
+  };
+  for (const Case& c : cases) {
+    const Result r = ctl(c.args);
+    EXPECT_EQ(r.code, c.code) << "ladderctl " << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.words), std::string::npos) << "ladderctl " << c.args << "\n" << r.output;
+  }
+  const Result status = ctl("status");
+  EXPECT_EQ(status.code, 0) << status.output;
+  EXPECT_NE(status.output.find("2 blocks"), std::string::npos) << status.output;  // free-chain, loaded above
+  // Live settings last until the next load: free-chain's own (no damping) replaced damping.linear = 0.2.
+  EXPECT_NE(status.output.find("damping.linear=0\n"), std::string::npos) << status.output;
+}
+
+TEST_F(Ladderctl, NoServerGivesTheTimeoutMessageAndCodeThree) {
+  const auto t0 = Clock::now();
+  const Result r = run("tip --domain " + std::to_string(domain_) + " --sim-id nobody-here --timeout 1");
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_EQ(r.code, 3) << r.output;
+  EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here' on DDS domain " + std::to_string(domain_) +
+                          " after 1 s; is it running, and is CYCLONEDDS_URI the same on both sides?"),
+            std::string::npos)
+      << r.output;
+  EXPECT_LT(took, 3.0);
+}
+
+TEST_F(Ladderctl, WatchEventsPrintsTheRippleAsJson) {
+  ASSERT_EQ(ctl("tip").code, 0);
+  const Result r = run("watch events --json" + where_ + " & pid=$!; sleep 3; kill -INT $pid; wait $pid");
+  EXPECT_NE(r.output.find("\"kind\":\"flip_flop\",\"hinge\":5"), std::string::npos) << r.output;
+}
+
+// The prompt through a pseudo-terminal: "ti" + Tab completes to "tip", Enter sends it, the answer is printed.
+TEST_F(Ladderctl, PromptCompletesAndTipsTheLadder) {
+  int fd = -1;
+  const pid_t pid = forkpty(&fd, nullptr, nullptr, nullptr);
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const std::string domain = std::to_string(domain_);
+    execl(kLadderctl.c_str(), kLadderctl.c_str(), "--domain", domain.c_str(), "--sim-id", sim_id_.c_str(),
+          "--timeout", "15", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::string screen;
+  const auto read_until = [&](const std::string& words, double seconds) {
+    const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
+    while (screen.find(words) == std::string::npos && Clock::now() < deadline) {
+      fd_set set;
+      FD_ZERO(&set);
+      FD_SET(fd, &set);
+      timeval tv{0, 100000};
+      if (select(fd + 1, &set, nullptr, nullptr, &tv) > 0) {
+        char buf[1024];
+        const ssize_t n = read(fd, buf, sizeof buf);
+        if (n <= 0) break;
+        screen.append(buf, static_cast<std::size_t>(n));
+      }
+    }
+    return screen.find(words) != std::string::npos;
+  };
+  ASSERT_TRUE(read_until("ladder> ", 10)) << screen;
+  ASSERT_EQ(write(fd, "ti\t", 3), 3);
+  // The line editor redraws the completed word with cursor moves; "p " is the completion's tail.
+  EXPECT_TRUE(read_until("p ", 5)) << "no completion: " << screen;
+  ASSERT_EQ(write(fd, "\r", 1), 1);
+  // Only "tip" (not "ti") is accepted: the answer proves the completion.
+  EXPECT_TRUE(read_until("accepted at t = ", 20)) << screen;
+  ASSERT_EQ(write(fd, "quit\r", 5), 5);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  close(fd);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << screen;
+}
+
+}  // namespace
+}  // namespace ladder::test
