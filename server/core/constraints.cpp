@@ -13,6 +13,10 @@
 
 namespace ladder::core {
 
+// The sweeps hand each row to a lambda; GCC does not always inline a large one into the sweep's loop, and a call
+// per row (with its register spills) cost 10 % of the step.
+#define HOT_INLINE __attribute__((always_inline))
+
 namespace {
 
 // K_kk with (ua, ub) == (ua0, ub0); with the anchors of two configurations, the diagonal block of the exact Newton
@@ -109,7 +113,7 @@ void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2
     tau_[r.a] += cross(ua0[k], mu[k]);
     f_[r.b] -= mu[k];
     tau_[r.b] -= cross(ub0[k], mu[k]);
-    if (velocity_scale != 0) row_impulse_[k] += velocity_scale * mu[k];
+    if (velocity_scale != 0 && has_welds_) row_impulse_[k] += velocity_scale * mu[k];
   }
   for (size_t b = 0; b < nb; ++b)
     if (!bodies_[b].kinematic) correct_body(static_cast<int>(b), f_[b], tau_[b], velocity_scale);
@@ -121,7 +125,7 @@ void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2
 double World::forward_residual(const BlockTridiag& sys) {
   c_.resize(rows_.size());
   double worst = 0;
-  sys.forward(mu_, [this, &worst](int k) {
+  sys.forward(mu_, [this, &worst](int k) HOT_INLINE {
     c_[k] = row_residual(rows_[k]);
     worst = std::max(worst, c_[k].squaredNorm());
     return Vec2(-c_[k]);
@@ -135,7 +139,7 @@ double World::forward_residual(const BlockTridiag& sys) {
 // -c_ in one pass (newton_, mu_). The same blocks as build_newton_system().
 void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0) {
   Vec2 ub_prev = Vec2::Zero();
-  const auto row = [&](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) {
+  const auto row = [&](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
@@ -162,40 +166,32 @@ void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector
 // order from zero, as apply_correction() forms them, so the two give bit-identical states.
 double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                                   double velocity_scale) {
-  const int n = static_cast<int>(rows_.size());
+  const bool impulses = velocity_scale != 0 && has_welds_;
+  const Row* rows = rows_.data();
+  const Vec2* mu = mu_.data();  // backward() writes mu_[k] before calling with k; nothing resizes it meanwhile
+  Vec2* c = c_.data();
   double worst = 0;
-  const auto check = [this, &worst](int k) {
-    c_[k] = row_residual(rows_[k]);
-    worst = std::max(worst, c_[k].squaredNorm());
+  const auto check = [&](int k) HOT_INLINE {
+    c[k] = row_residual(rows[k]);
+    worst = std::max(worst, c[k].squaredNorm());
   };
-  sys.backward(mu_, [&](int k) {
-    const Row& r = rows_[k];
-    const Vec2& m = mu_[k];
-    const bool shared = k + 1 < n && rows_[k + 1].link_prev;  // r.b is rows_[k + 1].a
-    if (!bodies_[r.b].kinematic) {
-      Vec2 f = Vec2::Zero();
-      double tau = 0;
-      f -= m;
-      tau -= cross(ub0[k], m);
-      if (shared) {
-        f += mu_[k + 1];
-        tau += cross(ua0[k + 1], mu_[k + 1]);
+  sys.backward(mu_, [&](int k) HOT_INLINE {
+    const Row& r = rows[k];
+    const Vec2 m = mu[k];
+    if (r.corrects_b) {  // its row-k term, then (r.b being rows[k + 1].a) its row-(k + 1) term
+      Vec2 f = -m;
+      double tau = -cross(ub0[k], m);
+      if (r.shares_next) {
+        f += mu[k + 1];
+        tau += cross(ua0[k + 1], mu[k + 1]);
       }
       correct_body(r.b, f, tau, velocity_scale);
     }
-    if (!r.link_prev && !bodies_[r.a].kinematic) {
-      Vec2 f = Vec2::Zero();
-      double tau = 0;
-      f += m;
-      tau += cross(ua0[k], m);
-      correct_body(r.a, f, tau, velocity_scale);
-    }
-    if (velocity_scale != 0) row_impulse_[k] += velocity_scale * m;
+    if (r.corrects_a) correct_body(r.a, m, cross(ua0[k], m), velocity_scale);
+    if (impulses) row_impulse_[k] += velocity_scale * m;
     if (!r.link_prev) check(k);
-    if (shared) check(k + 1);
+    if (r.shares_next) check(k + 1);
   });
-  // apply_correction() renormalises every dynamic body's rotation, hinged or not.
-  for (int b : free_bodies_) correct_body(b, Vec2::Zero(), 0.0, velocity_scale);
   mark_state_changed();
   residual_ = std::sqrt(worst);
   residual_version_ = state_version_;
@@ -238,7 +234,7 @@ double World::newton_iteration(bool forward, bool& exact, double res, const std:
   if (exact)
     factor_exact_forward(ua0, ub0);
   else if (forward)
-    system_.forward(mu_, [this](int k) { return Vec2(-c_[k]); });
+    system_.forward(mu_, [this](int k) HOT_INLINE { return Vec2(-c_[k]); });
   double next = correct_along_chain(exact ? newton_ : system_, ua0, ub0, velocity_scale);
   // A step that makes things worse is cut back by halves (the correction is linear in mu, so applying -mu/2
   // undoes half of it): near heavily loaded light bodies (the top of a long hanging chain) a full Newton
@@ -294,7 +290,7 @@ void World::project_velocities() {
   const int n = static_cast<int>(rows_.size());
   ua0_.resize(rows_.size());
   ub0_.resize(rows_.size());
-  const auto row = [this](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) {
+  const auto row = [this](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
@@ -315,14 +311,14 @@ void World::project_velocities() {
   };
   stats_.regularised_pivots += system_.factor_forward(n, row, mu_);
   factor_version_ = anchors_version_ = state_version_;
-  system_.backward(mu_, [this, n](int k) {
+  system_.backward(mu_, [this](int k) HOT_INLINE {
     const Row& r = rows_[k];
     const Vec2& m = mu_[k];
     const Body& B = bodies_[r.b];
     BodyState& b = state_[r.b];
     b.v -= B.inv_mass * m;
     b.w -= B.inv_inertia * cross(ub0_[k], m);
-    if (k + 1 < n && rows_[k + 1].link_prev) {  // r.b is rows_[k + 1].a: its second row's impulse, in row order
+    if (r.shares_next) {  // r.b is rows_[k + 1].a: its second row's impulse, in row order
       b.v += B.inv_mass * mu_[k + 1];
       b.w += B.inv_inertia * cross(ua0_[k + 1], mu_[k + 1]);
     }
@@ -332,7 +328,7 @@ void World::project_velocities() {
       a.v += A.inv_mass * m;
       a.w += A.inv_inertia * cross(ua0_[k], m);
     }
-    row_impulse_[k] += m;
+    if (has_welds_) row_impulse_[k] += m;
   });
 }
 
@@ -379,7 +375,7 @@ void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>
     ang[r.a] += A.inv_inertia * cross(ua_[k], mu_[k]);
     lin[r.b] -= B.inv_mass * mu_[k];
     ang[r.b] -= B.inv_inertia * cross(ub_[k], mu_[k]);
-    row_impulse_[k] += impulse_weight * mu_[k];
+    if (has_welds_) row_impulse_[k] += impulse_weight * mu_[k];
   }
 }
 

@@ -155,10 +155,15 @@ void World::kick_drift(double h_kick, double h) {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const Body& body = bodies_[b];
     if (body.kinematic) continue;
+    BodyState& s = state_[b];
     Vec2 f;
     double tau;
-    body_force(static_cast<int>(b), f, tau);
-    BodyState& s = state_[b];
+    if (body.single_part) {  // body_force()'s common case, inline
+      f = body.mass * (options_.gravity - options_.linear_damping * s.v);
+      tau = -options_.angular_damping * body.inertia * s.w;
+    } else {
+      body_force(static_cast<int>(b), f, tau);
+    }
     s.v += (h_kick * body.inv_mass) * f;
     s.w += h_kick * body.inv_inertia * tau;
     const double dth = h * s.w;
@@ -174,8 +179,12 @@ void World::step(double h) {
   ensure_built();
   stats_ = {};
   last_h_ = h;
-  std::fill(row_impulse_.begin(), row_impulse_.end(), Vec2::Zero());
-  if (has_welds_) step_start_ = state_;
+  // The row impulses and the start state serve weld_moment() only, which is void unless a weld existed during the
+  // step (a weld made later changes the structure), so a model without welds does not pay for them.
+  if (has_welds_) {
+    std::fill(row_impulse_.begin(), row_impulse_.end(), Vec2::Zero());
+    step_start_ = state_;
+  }
   step_structure_ = structure_;
   step_forces_ = forces_;
   switch (options_.integrator) {

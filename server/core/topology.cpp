@@ -63,7 +63,6 @@ int World::add_part(const PartDef& def) {
   body.anchor_part = index;
   bodies_.push_back(body);
   body_parts_.push_back({index});
-  if (!def.kinematic) free_bodies_.push_back(part.body);
   BodyState s;
   s.x = def.position + q * com;
   s.th = def.angle;
@@ -315,7 +314,7 @@ void World::rebuild() {
       throw std::invalid_argument("a hinge between particles " + std::to_string(jt.pa) + " and " +
                                   std::to_string(jt.pb) + " would join a body to itself (a closed loop)");
     if (bodies[a].kinematic && bodies[b].kinematic) continue;  // nothing can move: no equation to solve
-    rows.push_back({a, b, Vec2::Zero(), Vec2::Zero(), pa, pb, static_cast<int>(j), false});
+    rows.push_back({a, b, Vec2::Zero(), Vec2::Zero(), pa, pb, static_cast<int>(j), false, false, false, false});
   }
   order_rows(bodies, rows);  // may throw: nothing is committed yet
   // Commit.
@@ -334,11 +333,12 @@ void World::rebuild() {
     r.rb = B.rel_x + B.rel_q * particles_[qb].local;
   }
   rows_ = std::move(rows);
-  std::vector<char> in_row(bodies_.size(), 0);
-  for (const Row& r : rows_) in_row[r.a] = in_row[r.b] = 1;
-  free_bodies_.clear();
-  for (size_t b = 0; b < bodies_.size(); ++b)
-    if (!bodies_[b].kinematic && !in_row[b]) free_bodies_.push_back(static_cast<int>(b));
+  for (size_t k = 0; k < rows_.size(); ++k) {
+    Row& r = rows_[k];
+    r.shares_next = k + 1 < rows_.size() && rows_[k + 1].link_prev;
+    r.corrects_a = !r.link_prev && !bodies_[r.a].kinematic;
+    r.corrects_b = !bodies_[r.b].kinematic;
+  }
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
   ++structure_;
