@@ -300,9 +300,9 @@ void World::project_velocities() {
     ua0_[k] = ua;
     ub0_[k] = ub;
     d = diagonal_block(ua, ub, ua, ub, A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
-    if (r.link_prev) {
+    if (r.link_prev) {  // K is symmetric: L_k = U_{k-1}^T (the same products, so the same bits as building it)
       u_prev = coupling_block(ub0_[k - 1], ua, A.inv_mass, A.inv_inertia);
-      l = coupling_block(ua, ub0_[k - 1], A.inv_mass, A.inv_inertia);
+      l = u_prev.transpose();
     } else {
       u_prev.setZero();
       l.setZero();
