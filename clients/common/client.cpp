@@ -168,6 +168,7 @@ void Client::poll() {
     si.scene_name = text_of(s.scene_name);
     si.description = text_of(s.description);
     si.server_version = text_of(s.server_version);
+    si.replay = s.replay;
     si.top = text_of(s.top);
     si.options = text_of(s.options);
     si.blocks = s.blocks;
@@ -203,9 +204,10 @@ bool Client::wait(Millis timeout, const std::function<bool()>& done) {
 }
 
 bool Client::wait_for_server(Millis timeout) {
+  // A replay (ladderctl replay) publishes but takes no commands.
   return wait(timeout, [&] {
-    return command_w_.matched() > 0 && ack_r_.matched() > 0 && event_r_.matched() > 0 && state_.has_value() &&
-           scene_.has_value();
+    return state_.has_value() && scene_.has_value() &&
+           (scene_->replay || (command_w_.matched() > 0 && ack_r_.matched() > 0 && event_r_.matched() > 0));
   });
 }
 

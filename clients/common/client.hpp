@@ -50,6 +50,7 @@ struct State {
 struct SceneInfo {
   std::uint32_t generation = 0;
   std::string scene_name, description, server_version, top, options;
+  bool replay = false;
   std::uint32_t blocks = 0;
   double length = 0, thickness = 0, hinge_inset = 0, dt = 0;
   double physics_rate = 0, publish_rate = 0, real_time_factor = 0;
@@ -84,7 +85,8 @@ class Client {
   // client_id: how the server's log and acks name this client; empty = "<host>-<pid>".
   Client(int domain, std::string sim_id, std::string client_id = {});
 
-  // Waits until the server takes our commands and publishes to us; false at the timeout.
+  // Waits until the server takes our commands and publishes to us (a replay: publishes to us); false at the
+  // timeout.
   bool wait_for_server(Millis timeout);
   // Sends a command (sim id, client id and a fresh command id filled in) and returns its id.
   std::uint64_t send(ladder_msg_Command c);

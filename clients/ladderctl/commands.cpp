@@ -1,5 +1,7 @@
 #include "commands.hpp"
 
+#include "replay.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <atomic>
@@ -192,8 +194,11 @@ int status(Client& client, const Connection& c) {
               info->length * 1e3, info->thickness * 1e3, info->top.c_str());
   std::printf("sim time %.3f s, step %llu, %s, energy %.6f J\n", state->sim_time,
               static_cast<unsigned long long>(state->step), state->paused ? "paused" : "running", state->energy);
-  std::printf("rates: physics %g Hz, states %g Hz, real-time factor set to %g\n", info->physics_rate,
-              info->publish_rate, info->real_time_factor);
+  if (info->replay)
+    std::printf("a replay of a recorded session (ladderctl replay): it takes no commands\n");
+  else
+    std::printf("rates: physics %g Hz, states %g Hz, real-time factor set to %g\n", info->physics_rate,
+                info->publish_rate, info->real_time_factor);
   if (stats) {
     std::printf("measured over the last %.1f s: real-time factor %.3f, step p50 %.1f us p99 %.1f us max %.1f us,\n"
                 "  tick lateness p50 %.0f us p99 %.0f us max %.0f us, missed ticks %llu, largest hinge error %.2g m\n",
@@ -214,6 +219,8 @@ int status(Client& client, const Connection& c) {
 
 // What the parsed subcommand does once connected.
 using Action = std::function<int(Client&, const Connection&)>;
+// What a subcommand that needs no server (replay) does.
+using Standalone = std::function<int(const Connection&)>;
 
 struct Values {
   int index = 0;
@@ -221,6 +228,7 @@ struct Values {
   std::string impulse = "0.005,0", at, force, to, pose, key, value, scene, what;
   double duration = 0, stiffness = 0, rate = 10;
   bool json = false;
+  ReplayOptions replay;
 };
 
 void add_connection(CLI::App& app, Connection& c) {
@@ -231,7 +239,7 @@ void add_connection(CLI::App& app, Connection& c) {
 }
 
 // Declares every subcommand; the chosen one's callback leaves its action in `action`.
-void declare(CLI::App& app, Values& v, Action& action) {
+void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   const auto simple = [&](const char* name, const char* help, ladder_msg_Command (*make)()) {
     app.add_subcommand(name, help)->callback([&action, make] {
       action = [make](Client& cl, const Connection& c) { return send(cl, c, make()); };
@@ -346,6 +354,20 @@ void declare(CLI::App& app, Values& v, Action& action) {
   w->callback([&] {
     action = [&v](Client& cl, const Connection&) { return watch(cl, v.what, v.json, v.rate); };
   });
+
+  auto* r = app.add_subcommand("replay", "publish a recorded session (ladderd --record) as if live, for viewers");
+  r->add_option("FILE", v.replay.log, "the session log")->required()->check(CLI::ExistingFile);
+  r->add_option("--speed", v.replay.speed, "pace: 2 = twice as fast, 0 = as fast as possible (default 1)")
+      ->check(CLI::NonNegativeNumber);
+  r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")->check(CLI::NonNegativeNumber);
+  r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)");
+  r->callback([&] {
+    standalone = [&v](const Connection& c) {
+      ReplayOptions o = v.replay;
+      o.domain = c.domain;
+      return replay(o);
+    };
+  });
 }
 
 }  // namespace
@@ -353,7 +375,7 @@ void declare(CLI::App& app, Values& v, Action& action) {
 const std::vector<std::string>& command_names() {
   static const std::vector<std::string> names{"tip",  "poke",  "push", "grab",   "drag", "release",
                                               "break", "join", "pause", "resume", "step", "reset",
-                                              "set",  "load",  "status", "watch", "help", "quit"};
+                                              "set",  "load",  "status", "watch", "replay", "help", "quit"};
   return names;
 }
 
@@ -362,9 +384,10 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   CLI::App app{"ladderctl: drive a ladderd server. Without a command: an interactive prompt.", "ladderctl"};
   Values v;
   Action action;
+  Standalone standalone;
   add_connection(app, conn);
   app.fallthrough();  // inherited by the subcommands: --domain, --sim-id and --timeout may also come after one
-  declare(app, v, action);
+  declare(app, v, action, standalone);
   app.require_subcommand(interactive ? 1 : 0, 1);
   const Connection before = conn;
   std::vector<std::string> reversed(args.rbegin(), args.rend());
@@ -375,6 +398,7 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
     return code == 0 ? kAccepted : kUsage;
   }
   if (conn.domain != before.domain || conn.sim_id != before.sim_id) client.reset();
+  if (standalone) return standalone(conn);
   if (!action) return kNoCommand;
   Client* c = connect(conn, client);
   if (!c) return kNoServer;

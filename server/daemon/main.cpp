@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <memory>
 #include <iostream>
 
 int main(int argc, char** argv) {
@@ -19,7 +20,7 @@ int main(int argc, char** argv) {
   daemon::OfflineOptions o;
   daemon::DaemonConfig c;
   c.server.scenes_dir = LADDER_SCENES_DIR;
-  std::string config_file;
+  std::string config_file, resimulate, resume;
   bool offline = false, quiet = false, keys = false;
   app.add_option("--config", config_file, "configuration file (TOML), e.g. config/ladderd.toml")
       ->check(CLI::ExistingFile);
@@ -34,7 +35,13 @@ int main(int argc, char** argv) {
                              "real-time factor: sim seconds per wall second, 0 = as fast as possible");
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
+  app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
+  app.add_option("--resume", resume, "go on live from the last checkpoint of a session log FILE")
+      ->check(CLI::ExistingFile);
   app.add_flag("--offline", offline, "run the scene as fast as possible with no network, then exit");
+  app.add_option("--resimulate", resimulate,
+                 "with --offline: re-run a session log FILE and compare every recorded state bit for bit")
+      ->check(CLI::ExistingFile);
   app.add_option("--duration", o.duration, "simulated time to run [s] (offline)");
   app.add_option("--events", o.events, "write events as JSON lines to FILE (offline)");
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
@@ -72,6 +79,11 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (offline && !resimulate.empty()) return daemon::run_resimulation(resimulate, !quiet);
+  if (!resimulate.empty()) {
+    spdlog::error("--resimulate runs offline: add --offline");
+    return 2;
+  }
   if (offline) {
     if (c.scene.empty() || o.duration <= 0) {
       spdlog::error("--offline needs --scene FILE and --duration S (seconds > 0); see --help");
@@ -82,10 +94,10 @@ int main(int argc, char** argv) {
     return daemon::run_offline(o);
   }
 
-  scene::Scene first;
+  std::unique_ptr<daemon::Session> session;
   try {
-    first = daemon::first_scene(c, o.overrides);
-  } catch (const scene::SceneError& e) {
+    session = resume.empty() ? daemon::first_session(c, o.overrides) : daemon::resumed_session(resume, c);
+  } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 2;
   }
@@ -93,7 +105,7 @@ int main(int argc, char** argv) {
   daemon::catch_stop_signals(stop);
   transport::use_default_config(transport::kDefaultCycloneConfig);
   try {
-    const int rc = daemon::run_server(c.server, first, stop);
+    const int rc = daemon::run_server(c.server, std::move(session), stop);
     daemon::log_stop_reason();
     return rc;
   } catch (const std::exception& e) {

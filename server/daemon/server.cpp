@@ -1,7 +1,13 @@
 #include "daemon/server.hpp"
 
 #include "daemon/handoff.hpp"
+#include "ladderlcm/checkpoint_t.hpp"
+#include "ladderlcm/command_t.hpp"
+#include "ladderlcm/event_t.hpp"
+#include "ladderlcm/scene_t.hpp"
+#include "ladderlcm/state_t.hpp"
 #include "transport/dds.hpp"
+#include "transport/lcm_log.hpp"
 #include "transport/topics.hpp"
 
 #include <spdlog/spdlog.h>
@@ -15,6 +21,7 @@
 #include <cstring>
 #include <deque>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <tuple>
@@ -42,13 +49,31 @@ struct EventOut {
 struct SceneOut {
   std::uint32_t generation = 0;
   std::string name, description, top, options;
+  std::string text, source;              // what the scene was made from, for the log
+  std::vector<std::string> overrides;
+  bool timeline_dropped = false;
   int blocks = 0;
   double length = 0, thickness = 0, inset = 0, dt = 0;
   std::vector<double> masses;
   Rates rates;
 };
+// A command as the simulation took it, for the log.
+struct CommandOut {
+  ladder_msg_Command command;
+  std::uint32_t generation = 0;
+  std::uint64_t step = 0, seq = 0;
+  bool accepted = false;
+  std::string reason;
+};
+struct CheckpointOut {
+  std::uint32_t generation = 0;
+  std::uint64_t step = 0, commands_applied = 0, hash = 0;
+  double t = 0;
+};
 struct Outbox {
   std::vector<ladder_msg_CommandAck> acks;
+  std::vector<CommandOut> commands;       // only when recording
+  std::vector<CheckpointOut> checkpoints;  // only when recording
   std::vector<EventOut> events;
   std::vector<ladder_msg_Stats> stats;
   std::vector<SceneOut> scenes;
@@ -132,6 +157,10 @@ SceneOut scene_out(const Session& s) {
   o.dt = sc.dt;
   o.masses = l.masses.empty() ? std::vector<double>(static_cast<std::size_t>(l.blocks), l.mass) : l.masses;
   o.rates = s.rates();
+  o.text = sc.text;
+  o.source = sc.source;
+  o.overrides = sc.overrides;
+  o.timeline_dropped = sc.timeline_dropped;
   return o;
 }
 
@@ -140,8 +169,11 @@ SceneOut scene_out(const Session& s) {
 
 class Physics {
  public:
-  Physics(Shared& shared, const scene::Scene& scene)
-      : sh_(shared), session_(scene, shared.config.scenes_dir, shared.config.limits, shared.config.rates) {}
+  Physics(Shared& shared, std::unique_ptr<Session> session)
+      : sh_(shared), owned_(std::move(session)), session_(*owned_), recording_(!shared.config.record.empty()) {
+    session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
+    scene_generation_ = session_.generation();
+  }
 
   void run(const std::atomic<bool>& stop);
 
@@ -153,6 +185,7 @@ class Physics {
   void publish_stats(Clock::time_point now);
   void run_step();
   void push_scene();
+  void checkpoint();
   template <class F>
   void with_outbox(F&& f) {
     std::lock_guard lock(sh_.outbox_mutex);
@@ -160,7 +193,8 @@ class Physics {
   }
 
   Shared& sh_;
-  Session session_;
+  std::unique_ptr<Session> owned_;
+  Session& session_;
   double debt_ = 0;  // sim time owed to the real-time clock [s]
   std::vector<double> step_us_, late_us_;
   std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;
@@ -168,10 +202,20 @@ class Physics {
   Clock::time_point last_stats_{}, last_publish_{};
   std::uint32_t scene_generation_ = 0;
   Rates scene_rates_{};
+  bool recording_;
+  double next_checkpoint_ = 0;  // [s of sim time]
   bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
 };
 
+void Physics::checkpoint() {
+  const scene::Simulation& sim = session_.sim();
+  const CheckpointOut c{session_.generation(), sim.steps(), accepted_ + refused_, session_.state_hash(), sim.time()};
+  with_outbox([&](Outbox& o) { o.checkpoints.push_back(c); });
+  next_checkpoint_ = sim.time() + sh_.config.checkpoint_every;
+}
+
 void Physics::push_scene() {
+  if (recording_ && session_.generation() != scene_generation_) next_checkpoint_ = 0;  // one at each start
   scene_generation_ = session_.generation();
   scene_rates_ = session_.rates();
   with_outbox([&](Outbox& o) { o.scenes.push_back(scene_out(session_)); });
@@ -193,6 +237,7 @@ void Physics::take_commands() {
     return c < 0 || (c == 0 && a.command_id < b.command_id);
   });
   std::vector<ladder_msg_CommandAck> acks(batch.size());
+  std::vector<CommandOut> commands;
   for (std::size_t i = 0; i < batch.size(); ++i) {
     const ladder_msg_Command& c = batch[i];
     const double t = session_.sim().time();
@@ -209,6 +254,7 @@ void Physics::take_commands() {
     a.step = session_.generation() != scene_generation_ ? session_.sim().steps() : step;
     (r.accepted ? accepted_ : refused_)++;
     a.command_seq = accepted_ + refused_;
+    if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
     if (r.accepted)
       spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
     else
@@ -223,7 +269,10 @@ void Physics::take_commands() {
       push_scene();
     }
   }
-  with_outbox([&](Outbox& o) { o.acks.insert(o.acks.end(), acks.begin(), acks.end()); });
+  with_outbox([&](Outbox& o) {
+    o.acks.insert(o.acks.end(), acks.begin(), acks.end());
+    o.commands.insert(o.commands.end(), commands.begin(), commands.end());
+  });
 }
 
 void Physics::run_step() {
@@ -341,6 +390,7 @@ void Physics::run(const std::atomic<bool>& stop) {
       deadline = start;
     }
     take_commands();
+    if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
     advance(period, start);
     collect_events();
     const auto now = Clock::now();
@@ -368,8 +418,9 @@ void Physics::run(const std::atomic<bool>& stop) {
 
 class Io {
  public:
-  explicit Io(Shared& shared)
+  Io(Shared& shared, transport::LogWriter* log)
       : sh_(shared),
+        log_(log),
         participant_(transport::make_participant(static_cast<dds_domainid_t>(shared.config.domain))),
         topics_(participant_),
         scene_w_(participant_, topics_.scene_info, transport::Profile::SceneInfo),
@@ -392,7 +443,11 @@ class Io {
   void write_state();
   void refuse(const ladder_msg_Command& c, const std::string& reason);
 
+  void record_outbox();
+  void record_state(const StateFrame& f, std::uint64_t seq);
+
   Shared& sh_;
+  transport::LogWriter* log_;  // null when not recording
   transport::Entity participant_;  // first: destroyed last
   transport::Topics topics_;
   transport::Writer<ladder_msg_SceneInfo> scene_w_;
@@ -402,7 +457,7 @@ class Io {
   transport::Writer<ladder_msg_Stats> stats_w_;
   transport::Reader<ladder_msg_Command> command_r_;
   transport::Waiter waiter_;
-  std::uint64_t state_seq_ = 0, event_seq_ = 0;
+  std::uint64_t state_seq_ = 0, event_seq_ = 0, logged_events_ = 0;
   std::uint32_t generation_ = 0;
   Outbox out_;
 };
@@ -459,9 +514,7 @@ void Io::write_outbox() {
     m.length = s.length;
     m.thickness = s.thickness;
     m.hinge_inset = s.inset;
-    m.masses._buffer = const_cast<double*>(s.masses.data());
-    m.masses._length = m.masses._maximum = static_cast<std::uint32_t>(s.masses.size());
-    m.masses._release = false;
+    transport::lend(m.masses, s.masses);
     copy_text(m.top, s.top);
     m.dt = s.dt;
     m.physics_rate = s.rates.physics;
@@ -484,6 +537,9 @@ void Io::write_outbox() {
   }
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) stats_w_.write(s);
+  if (log_) record_outbox();
+  out_.commands.clear();
+  out_.checkpoints.clear();
   out_.scenes.clear();
   out_.acks.clear();
   out_.events.clear();
@@ -503,14 +559,104 @@ void Io::write_state() {
   m.commands_applied = f->commands_applied;
   m.energy = f->energy;
   // Borrowed buffers: DDS serialises them in write() and must not free them.
-  m.blocks._buffer = const_cast<ladder_msg_Pose*>(f->blocks.data());
-  m.blocks._length = m.blocks._maximum = static_cast<std::uint32_t>(f->blocks.size());
-  m.hinges._buffer = const_cast<ladder_msg_Hinge*>(f->hinges.data());
-  m.hinges._length = m.hinges._maximum = static_cast<std::uint32_t>(f->hinges.size());
-  m.grips._buffer = const_cast<ladder_msg_Grip*>(f->grips.data());
-  m.grips._length = m.grips._maximum = static_cast<std::uint32_t>(f->grips.size());
+  transport::lend(m.blocks, f->blocks);
+  transport::lend(m.hinges, f->hinges);
+  transport::lend(m.grips, f->grips);
   state_w_.write(m);
   sh_.states_published.fetch_add(1, std::memory_order_relaxed);
+  if (log_) record_state(*f, m.seq);
+}
+
+// The session log (ladderd --record): what was published, and the commands as the simulation took them. The
+// encoding happens here, on the I/O thread; the writer's own thread does the file I/O.
+void Io::record_outbox() {
+  const std::int64_t now = transport::now_us();
+  for (const SceneOut& s : out_.scenes) {
+    ladderlcm::scene_t m;
+    m.utime = now;
+    m.sim_id = sh_.config.sim_id;
+    m.generation = static_cast<std::int32_t>(s.generation);
+    m.name = s.name;
+    m.source = s.source;
+    m.toml = s.text;
+    m.overrides = s.overrides;
+    m.num_overrides = static_cast<std::int32_t>(s.overrides.size());
+    m.clear_timeline = s.timeline_dropped;
+    m.blocks = s.blocks;
+    m.length = s.length;
+    m.thickness = s.thickness;
+    m.hinge_inset = s.inset;
+    m.dt = s.dt;
+    m.top = s.top;
+    m.masses = s.masses;
+    m.server_version = kVersion;
+    log_->write(transport::kSceneChannel, now, m, false);
+  }
+  for (const CommandOut& c : out_.commands) {
+    const ladder_msg_Command& k = c.command;
+    ladderlcm::command_t m;
+    m.utime = now;
+    m.generation = static_cast<std::int32_t>(c.generation);
+    m.step = static_cast<std::int64_t>(c.step);
+    m.command_seq = static_cast<std::int64_t>(c.seq);
+    m.client_id = text_of(k.client_id);
+    m.command_id = static_cast<std::int64_t>(k.command_id);
+    m.kind = static_cast<std::int32_t>(k.kind);
+    m.block = k.block;
+    m.hinge = k.hinge;
+    m.count = static_cast<std::int32_t>(k.count);
+    m.has_point = k.has_point;
+    m.has_target = k.has_target;
+    m.has_angle = k.has_angle;
+    m.a = k.a, m.b = k.b, m.c = k.c, m.d = k.d, m.e = k.e, m.f = k.f;
+    m.text = text_of(k.text);
+    m.accepted = c.accepted;
+    m.reason = c.reason;
+    log_->write(transport::kCommandChannel, now, m, false);
+  }
+  for (const EventOut& e : out_.events) {
+    ladderlcm::event_t m;
+    m.utime = now;
+    m.seq = static_cast<std::int64_t>(++logged_events_);
+    m.t = e.t;
+    m.kind = e.kind;
+    m.hinge = e.hinge;
+    m.energy_removed = e.energy_removed;
+    m.detail = e.detail;
+    log_->write(transport::kEventChannel, now, m, false);
+  }
+  for (const CheckpointOut& c : out_.checkpoints) {
+    ladderlcm::checkpoint_t m;
+    m.utime = now;
+    m.generation = static_cast<std::int32_t>(c.generation);
+    m.step = static_cast<std::int64_t>(c.step);
+    m.sim_time = c.t;
+    m.commands_applied = static_cast<std::int64_t>(c.commands_applied);
+    m.state_hash = static_cast<std::int64_t>(c.hash);
+    log_->write(transport::kCheckpointChannel, now, m, false);
+  }
+}
+
+void Io::record_state(const StateFrame& f, std::uint64_t seq) {
+  ladderlcm::state_t m;
+  m.utime = transport::now_us();
+  m.generation = static_cast<std::int32_t>(f.generation);
+  m.seq = static_cast<std::int64_t>(seq);
+  m.step = static_cast<std::int64_t>(f.step);
+  m.sim_time = f.t;
+  m.paused = f.paused;
+  m.commands_applied = static_cast<std::int64_t>(f.commands_applied);
+  m.energy = f.energy;
+  const std::size_t n = f.blocks.size();
+  m.num_blocks = static_cast<std::int32_t>(n);
+  m.x.resize(n), m.y.resize(n), m.theta.resize(n), m.corner.resize(n), m.status.resize(n), m.flips.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    m.x[i] = f.blocks[i].x, m.y[i] = f.blocks[i].y, m.theta[i] = f.blocks[i].theta;
+    m.corner[i] = static_cast<std::int8_t>(f.hinges[i].corner);
+    m.status[i] = static_cast<std::int8_t>(f.hinges[i].status);
+    m.flips[i] = static_cast<std::int32_t>(f.hinges[i].flips);
+  }
+  log_->write(transport::kStateChannel, m.utime, m, true);
 }
 
 void Io::run() {
@@ -527,9 +673,19 @@ void Io::run() {
 }  // namespace
 
 int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop) {
+  return run_server(config, std::make_unique<Session>(scene, config.scenes_dir, config.limits, config.rates), stop);
+}
+
+int run_server(const ServerConfig& config, std::unique_ptr<Session> session, const std::atomic<bool>& stop) {
+  const scene::Scene& scene = session->sim().scene();
   Shared shared(config);
-  Io io(shared);
-  Physics physics(shared, scene);
+  std::unique_ptr<transport::LogWriter> log;
+  if (!config.record.empty()) {
+    log = std::make_unique<transport::LogWriter>(config.record);
+    spdlog::info("recording the session to {}", config.record);
+  }
+  Io io(shared, log.get());
+  Physics physics(shared, std::move(session));
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
                "factor {}",
                scene.name, config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,
@@ -551,6 +707,10 @@ int run_server(const ServerConfig& config, const scene::Scene& scene, const std:
     throw;
   }
   physics_thread.join();
+  if (log) {
+    log.reset();  // writes what is queued, flushes, closes
+    spdlog::info("session log {} closed", config.record);
+  }
   if (physics_error) std::rethrow_exception(physics_error);
   return 0;
 }

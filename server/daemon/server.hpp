@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cstddef>
+#include <memory>
 #include <string>
 
 namespace ladder::daemon {
@@ -20,10 +21,14 @@ struct ServerConfig {
   Limits limits;
   std::size_t queue = 1000;       // commands waiting for the physics thread; beyond it they are refused
   std::size_t per_tick = 100;     // commands applied per tick at most
+  std::string record;             // LCM session log to write; empty = none
+  double checkpoint_every = 1.0;  // [s of sim time] between checkpoints in the log
 };
 
 // Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws
 // transport::DdsError when DDS cannot be set up.
 int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop);
+// The same, going on from a session made elsewhere (ladderd --resume); it takes the config's rules.
+int run_server(const ServerConfig& config, std::unique_ptr<Session> session, const std::atomic<bool>& stop);
 
 }  // namespace ladder::daemon

@@ -207,6 +207,40 @@ Outcome Session::apply(const ladder_msg_Command& c) {
   return {};
 }
 
+namespace {
+struct Fnv {
+  std::uint64_t h = 1469598103934665603ull;
+  void bytes(const void* p, std::size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  }
+  template <class T>
+  void value(const T& v) {
+    bytes(&v, sizeof v);
+  }
+};
+}  // namespace
+
+std::uint64_t Session::state_hash() const {
+  const model::Ladder& l = sim_->ladder();
+  const core::Snapshot snap = l.world().save();
+  Fnv f;
+  f.value(snap.t);
+  for (const core::BodyState& b : snap.bodies) {
+    f.value(b.x.x()), f.value(b.x.y()), f.value(b.v.x()), f.value(b.v.y());
+    f.value(b.q.c), f.value(b.q.s), f.value(b.th), f.value(b.w);
+  }
+  for (const core::AppliedForce& a : snap.forces) {
+    f.value(a.part), f.value(a.local.x()), f.value(a.local.y()), f.value(a.force.x()), f.value(a.force.y());
+    f.value(a.until);
+  }
+  for (const model::HingeInfo& h : l.hinges()) f.value(h.corner), f.value(h.status), f.value(h.flips);
+  for (const model::Ladder::Grip& g : l.grips()) {
+    f.value(g.block), f.value(g.target.x()), f.value(g.target.y()), f.value(g.hold_angle), f.value(g.angle);
+  }
+  return f.h;
+}
+
 Outcome Session::set_param(const std::string& setting) {
   const size_t eq = setting.find('=');
   const std::string key = setting.substr(0, eq);

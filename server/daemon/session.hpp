@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 
 namespace ladder::daemon {
 
@@ -56,6 +57,15 @@ class Session {
   const Rates& rates() const { return rates_; }
   // Counts loads and resets; SceneInfo and State carry it.
   std::uint32_t generation() const { return generation_; }
+  // The server's rules, for a session made elsewhere (a resumed log).
+  void configure(std::string scenes_dir, Limits limits, Rates rates) {
+    scenes_dir_ = std::move(scenes_dir), limits_ = limits, rates_ = rates;
+  }
+  // Starts `scene` as a load does (a replayed log brings its own scene text rather than a file name).
+  void restart(const scene::Scene& scene) { start(scene); }
+  // FNV-1a over the bits of the complete dynamic state: every body's position, angle and velocities, the time,
+  // the user forces, the hinges and the grips. Equal hashes mean (up to a 2^-64 chance) identical states.
+  std::uint64_t state_hash() const;
 
  private:
   Outcome set_param(const std::string& setting);

@@ -1,6 +1,7 @@
 #include "daemon/startup.hpp"
 
 #include "daemon/builtin_scene.hpp"
+#include "daemon/resimulate.hpp"
 
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -39,10 +40,66 @@ void setup_logging(const DaemonConfig& config) {
 
 scene::Scene first_scene(const DaemonConfig& config, const std::vector<std::string>& overrides) {
   if (!config.scene.empty()) return scene::load_scene(config.scene, overrides);
-  scene::Scene s = scene::parse_scene(kBuiltinSceneToml, "built-in classic scene", overrides);
-  s.timeline.clear();  // at rest: the user tips it
+  // At rest: the user tips it.
+  scene::Scene s = scene::remake_scene(kBuiltinSceneToml, "built-in classic scene", overrides, true);
   s.name = "classic (at rest)";
   return s;
+}
+
+std::unique_ptr<Session> first_session(const DaemonConfig& config, const std::vector<std::string>& overrides) {
+  const ServerConfig& s = config.server;
+  return std::make_unique<Session>(first_scene(config, overrides), s.scenes_dir, s.limits, s.rates);
+}
+
+std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonConfig& config) {
+  if (!config.server.record.empty())
+    throw std::runtime_error("--record with --resume is not supported: a new log would start mid-session; "
+                             "resume without --record, or record a new session");
+  const SessionLog log = read_session_log(path);
+  if (!log.damage.empty()) spdlog::warn("{}: {}; resuming from what came before", path, log.damage);
+  if (log.checkpoints.empty()) throw std::runtime_error(path + ": no checkpoint to resume from");
+  std::unique_ptr<Session> session;
+  const long last = static_cast<long>(log.checkpoints.size()) - 1;
+  const Resimulation r = resimulate(log, session, last);
+  if (!r.identical) throw std::runtime_error(path + ": the re-run differs from the log: " + r.difference);
+  session->pause();
+  session->sim().take_events();  // they happened before; the log has them
+  session->sim().take_refusals();
+  spdlog::info("resumed from {}: checkpoint {} at t = {:.6f} s (step {}), {} states checked on the way; paused",
+               path, last, session->sim().time(), session->sim().steps(), r.states);
+  return session;
+}
+
+int run_resimulation(const std::string& path, bool progress) {
+  SessionLog log;
+  try {
+    log = read_session_log(path);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
+  if (!log.damage.empty()) spdlog::warn("{}: {}; re-running what came before", path, log.damage);
+  spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events", path, log.scenes.size(),
+               log.commands.size(), log.states.size(), log.checkpoints.size(), log.events);
+  std::unique_ptr<Session> session;
+  Resimulation r;
+  try {
+    r = resimulate(log, session, -1, [&](std::uint64_t steps, std::uint64_t states) {
+      if (progress) spdlog::info("... {} steps, {} states identical so far", steps, states);
+    });
+  } catch (const std::exception& e) {
+    spdlog::error("{}: {}", path, e.what());
+    return 2;
+  }
+  if (!r.identical) {
+    spdlog::error("differs: {} ({} states and {} checkpoints identical before it)", r.difference, r.states,
+                  r.checkpoints);
+    return 1;
+  }
+  spdlog::info("identical to the last bit: {} states and {} checkpoints compared over {} steps ({} commands), up "
+               "to t = {:.6f} s",
+               r.states, r.checkpoints, r.steps, r.commands, r.sim_time);
+  return 0;
 }
 
 void catch_stop_signals(std::atomic<bool>& stop) {

@@ -2,9 +2,11 @@
 #pragma once
 
 #include "daemon/config.hpp"
+#include "daemon/session.hpp"
 #include "scene/scene.hpp"
 
 #include <atomic>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,14 @@ void setup_logging(const DaemonConfig& config);
 // The scene file named in the configuration, or the built-in classic toy at rest (its timeline removed), with
 // the --set overrides. Throws scene::SceneError.
 scene::Scene first_scene(const DaemonConfig& config, const std::vector<std::string>& overrides);
+std::unique_ptr<Session> first_session(const DaemonConfig& config, const std::vector<std::string>& overrides);
+
+// A session re-run from a log up to its last checkpoint (exactly the state recorded there), paused, to serve from.
+// Throws std::runtime_error when the log cannot be read or does not re-run identically.
+std::unique_ptr<Session> resumed_session(const std::string& log, const DaemonConfig& config);
+
+// ladderd --offline --resimulate LOG: exit 0 identical, 1 a difference (named), 2 an unreadable log.
+int run_resimulation(const std::string& log, bool progress);
 
 // SIGINT and SIGTERM set `stop` (and are logged by log_stop_reason once the server has stopped).
 void catch_stop_signals(std::atomic<bool>& stop);

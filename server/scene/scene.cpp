@@ -667,6 +667,18 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
   read_ladder(r, s.ladder);
   read_options(r, s);
   s.timeline = read_timeline(root, source_name, s.ladder.blocks);
+  s.text = std::string(toml_text);
+  s.overrides = overrides;
+  return s;
+}
+
+Scene remake_scene(const std::string& text, const std::string& source, const std::vector<std::string>& overrides,
+                   bool timeline_dropped) {
+  Scene s = parse_scene(text, source, overrides);
+  if (timeline_dropped) {
+    s.timeline.clear();
+    s.timeline_dropped = true;
+  }
   return s;
 }
 

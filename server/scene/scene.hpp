@@ -35,6 +35,11 @@ struct Scene {
   core::Options options;
   double dt = 0.001;                       // [s]
   std::vector<TimedCommand> timeline;      // sorted by t; entries with equal t keep their file order
+  // What the scene was made from, so that a session log can make it again (parse_scene(text, source, overrides),
+  // then drop the timeline if timeline_dropped).
+  std::string text;
+  std::vector<std::string> overrides;
+  bool timeline_dropped = false;
 };
 
 // what() is "FILE:LINE:COLUMN: message", "--set KEY=VALUE: message" for an override, or
@@ -45,9 +50,14 @@ class SceneError : public std::runtime_error {
 };
 
 // Each override is "table.key=value"; value is read as a TOML value, or as a bare string when it is not one.
+// The scene keeps the text and the overrides it was made from.
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 Scene parse_scene(std::string_view toml_text, const std::string& source_name,
                   const std::vector<std::string>& overrides = {});
+
+// The scene again from what it was made from (Scene::text, source, overrides, timeline_dropped).
+Scene remake_scene(const std::string& text, const std::string& source, const std::vector<std::string>& overrides,
+                   bool timeline_dropped);
 
 // The keys that can change while a simulation runs: sim.dt, sim.integrator, sim.gravity, solver.* and damping.*.
 bool is_live_key(std::string_view key);

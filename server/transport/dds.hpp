@@ -174,6 +174,14 @@ class Waiter {
   std::vector<Entity> conditions_;
 };
 
+// Lends a vector's elements to an IDL sequence field for one write: DDS serialises them and must not free them.
+template <class Seq, class T>
+void lend(Seq& seq, const std::vector<T>& v) {
+  seq._buffer = const_cast<T*>(v.data());
+  seq._length = seq._maximum = static_cast<std::uint32_t>(v.size());
+  seq._release = false;
+}
+
 // Copies a std::string into a bounded char[N] field, truncating (with "...") when it does not fit.
 template <std::size_t N>
 void copy_text(char (&dst)[N], const std::string& src) {

@@ -1,0 +1,167 @@
+#include "replay.hpp"
+
+#include "ladderlcm/event_t.hpp"
+#include "ladderlcm/scene_t.hpp"
+#include "ladderlcm/state_t.hpp"
+#include "transport/default_config.hpp"
+#include "transport/dds.hpp"
+#include "transport/lcm_log.hpp"
+#include "transport/topics.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+#include <vector>
+
+namespace ladder::ctl {
+
+namespace {
+
+using transport::copy_text;
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop(int) { g_stop = true; }
+
+class Publisher {
+ public:
+  Publisher(int domain, const std::string& sim_id)
+      : sim_id_(sim_id),
+        participant_((transport::use_default_config(transport::kDefaultCycloneConfig),
+                      transport::make_participant(static_cast<dds_domainid_t>(domain)))),
+        topics_(participant_),
+        scene_w_(participant_, topics_.scene_info, transport::Profile::SceneInfo),
+        state_w_(participant_, topics_.state, transport::Profile::State),
+        event_w_(participant_, topics_.event, transport::Profile::Event) {}
+
+  void scene(const ladderlcm::scene_t& s) {
+    ladder_msg_SceneInfo m{};
+    copy_text(m.sim_id, sim_id_);
+    m.generation = static_cast<std::uint32_t>(s.generation);
+    copy_text(m.scene_name, s.name);
+    copy_text(m.description, "replay of a recorded session");
+    copy_text(m.server_version, s.server_version);
+    m.replay = true;
+    m.blocks = static_cast<std::uint32_t>(s.blocks);
+    m.length = s.length;
+    m.thickness = s.thickness;
+    m.hinge_inset = s.hinge_inset;
+    transport::lend(m.masses, s.masses);
+    copy_text(m.top, s.top);
+    m.dt = s.dt;
+    scene_w_.write(m);
+  }
+
+  void state(const ladderlcm::state_t& s) {
+    const auto n = static_cast<std::size_t>(s.num_blocks);
+    poses_.resize(n);
+    hinges_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      poses_[i] = {s.x[i], s.y[i], s.theta[i]};
+      hinges_[i] = {static_cast<std::uint8_t>(s.corner[i]), static_cast<ladder_msg_HingeStatus>(s.status[i]),
+                    static_cast<std::uint32_t>(s.flips[i])};
+    }
+    ladder_msg_State m{};
+    copy_text(m.sim_id, sim_id_);
+    m.generation = static_cast<std::uint32_t>(s.generation);
+    m.seq = ++seq_;
+    m.step = static_cast<std::uint64_t>(s.step);
+    m.sim_time = s.sim_time;
+    m.paused = s.paused;
+    m.commands_applied = static_cast<std::uint64_t>(s.commands_applied);
+    m.energy = s.energy;
+    transport::lend(m.blocks, poses_);
+    transport::lend(m.hinges, hinges_);
+    state_w_.write(m);
+  }
+
+  void event(const ladderlcm::event_t& e) {
+    ladder_msg_Event m{};
+    copy_text(m.sim_id, sim_id_);
+    m.seq = static_cast<std::uint64_t>(e.seq);
+    m.t = e.t;
+    copy_text(m.kind, e.kind);
+    m.hinge = e.hinge;
+    m.energy_removed = e.energy_removed;
+    copy_text(m.detail, e.detail);
+    event_w_.write(m);
+  }
+
+ private:
+  std::string sim_id_;
+  transport::Entity participant_;
+  transport::Topics topics_;
+  transport::Writer<ladder_msg_SceneInfo> scene_w_;
+  transport::Writer<ladder_msg_State> state_w_;
+  transport::Writer<ladder_msg_Event> event_w_;
+  std::vector<ladder_msg_Pose> poses_;
+  std::vector<ladder_msg_Hinge> hinges_;
+  std::uint64_t seq_ = 0;
+};
+
+}  // namespace
+
+int replay(const ReplayOptions& o) {
+  std::unique_ptr<transport::LogReader> reader;
+  try {
+    reader = std::make_unique<transport::LogReader>(o.log);
+  } catch (const std::exception& e) {
+    std::cerr << "ladderctl: " << e.what() << "\n";
+    return 2;
+  }
+  Publisher out(o.domain, o.sim_id);
+  g_stop = false;
+  struct sigaction sa {}, old {};
+  sa.sa_handler = on_stop;
+  sigaction(SIGINT, &sa, &old);
+  std::cout << "replaying " << o.log << " as sim id '" << o.sim_id << "' on DDS domain " << o.domain
+            << " (Ctrl-C to stop)\n";
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
+  std::int64_t first_utime = -1;
+  std::uint64_t states = 0, events = 0;
+  double last_t = 0;
+  try {
+    while (!g_stop) {
+      const auto e = reader->next();
+      if (!e) break;
+      // Pace by the recorded wall times, from the first event that is played.
+      const auto wait_for = [&](std::int64_t utime) {
+        if (first_utime < 0) first_utime = utime;
+        if (o.speed <= 0) return;
+        const auto due = start + std::chrono::microseconds(
+                                     static_cast<std::int64_t>(static_cast<double>(utime - first_utime) / o.speed));
+        while (!g_stop && Clock::now() < due)
+          std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(50)));
+      };
+      if (e->channel == transport::kSceneChannel) {
+        out.scene(reader->decode<ladderlcm::scene_t>(*e));  // always, so a viewer knows what it sees
+      } else if (e->channel == transport::kStateChannel) {
+        const auto s = reader->decode<ladderlcm::state_t>(*e);
+        if (s.sim_time + 1e-9 < o.from) continue;
+        wait_for(e->utime);
+        out.state(s);
+        ++states;
+        last_t = s.sim_time;
+      } else if (e->channel == transport::kEventChannel) {
+        const auto ev = reader->decode<ladderlcm::event_t>(*e);
+        if (ev.t + 1e-9 < o.from) continue;
+        wait_for(e->utime);
+        out.event(ev);
+        ++events;
+      }
+    }
+  } catch (const std::exception& ex) {
+    std::cerr << "ladderctl: " << ex.what() << "\n";
+  }
+  sigaction(SIGINT, &old, nullptr);
+  if (!reader->damage().empty()) std::cerr << "ladderctl: " << o.log << ": " << reader->damage() << "\n";
+  std::printf("replayed %llu states and %llu events, up to t = %.3f s\n", static_cast<unsigned long long>(states),
+              static_cast<unsigned long long>(events), last_t);
+  // Transient-local data lives as long as its writer: give late viewers a moment to take the last state.
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  return 0;
+}
+
+}  // namespace ladder::ctl

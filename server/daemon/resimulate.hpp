@@ -1,0 +1,51 @@
+// Session logs read back: re-running a recorded session bit for bit (ladderd --offline --resimulate) and resuming
+// a live server where a log ends (ladderd --resume).
+//
+// A log holds the scene as it was started, every command as the simulation took it (with the generation and step
+// at which it was applied and its place in the server's order), every published state and periodic checkpoints
+// (hashes of the complete dynamic state). Runs are deterministic, so applying the same commands at the same steps
+// from the same scene reproduces every state exactly; the re-run compares each recorded state and checkpoint.
+#pragma once
+
+#include "daemon/session.hpp"
+#include "ladderlcm/checkpoint_t.hpp"
+#include "ladderlcm/command_t.hpp"
+#include "ladderlcm/scene_t.hpp"
+#include "ladderlcm/state_t.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace ladder::daemon {
+
+struct SessionLog {
+  std::string path;
+  std::vector<ladderlcm::scene_t> scenes;          // in log order
+  std::vector<ladderlcm::command_t> commands;      // sorted by command_seq
+  std::vector<ladderlcm::state_t> states;          // in log order
+  std::vector<ladderlcm::checkpoint_t> checkpoints;
+  std::uint64_t events = 0;                        // event records (not needed to re-run)
+  std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
+};
+
+// Reads a whole log. Throws std::runtime_error naming the file and the problem (not a log, an undecodable event,
+// no scene record); a damaged or cut-off end is not an error: reading stops there and `damage` says where.
+SessionLog read_session_log(const std::string& path);
+
+struct Resimulation {
+  bool identical = true;
+  std::string difference;  // the first difference, with its generation, step and what differs
+  std::uint64_t steps = 0, states = 0, checkpoints = 0, commands = 0;
+  double sim_time = 0;
+};
+
+// Re-runs `log` from its first scene, comparing every state and checkpoint, until the first difference or the
+// end; `stop_after_checkpoint` >= 0 stops right after that checkpoint (index into log.checkpoints) instead.
+// progress(steps, states) is called now and then. The session is left as the re-run ended.
+Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, long stop_after_checkpoint = -1,
+                        const std::function<void(std::uint64_t, std::uint64_t)>& progress = {});
+
+}  // namespace ladder::daemon

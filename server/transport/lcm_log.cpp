@@ -1,0 +1,112 @@
+#include "transport/lcm_log.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+
+namespace ladder::transport {
+
+std::int64_t now_us() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+LogWriter::LogWriter(const std::string& path) : path_(path), file_(path, "w") {
+  if (!file_.good()) throw std::runtime_error("cannot create the log file '" + path + "'");
+  thread_ = std::thread([this] { run(); });
+}
+
+LogWriter::~LogWriter() {
+  {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
+  }
+  wake_.notify_one();
+  thread_.join();
+}
+
+void LogWriter::push(Item item, bool droppable) {
+  {
+    std::lock_guard lock(mutex_);
+    if (droppable && queued_bytes_ > kMaxQueued) {
+      dropped_.fetch_add(1);
+      return;
+    }
+    queued_bytes_ += item.data.size();
+    queue_.push_back(std::move(item));
+  }
+  wake_.notify_one();
+}
+
+// Writes in batches and flushes after each, so that a crash loses at most the batch being written; LCM's reader
+// stops at a cut-off last event, so everything before it stays readable.
+void LogWriter::run() {
+  std::deque<Item> batch;
+  while (true) {
+    bool closing = false;
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait_for(lock, std::chrono::milliseconds(50), [&] { return closing_ || !queue_.empty(); });
+      batch.swap(queue_);
+      queued_bytes_ = 0;
+      closing = closing_;
+    }
+    for (Item& item : batch) {
+      lcm::LogEvent e{};
+      e.timestamp = item.utime;
+      e.channel = item.channel;
+      e.datalen = static_cast<int32_t>(item.data.size());
+      e.data = item.data.data();
+      file_.writeEvent(&e);
+    }
+    written_.fetch_add(batch.size());
+    batch.clear();
+    std::fflush(file_.getFilePtr());
+    if (closing) break;
+  }
+  fsync(fileno(file_.getFilePtr()));
+}
+
+LogReader::LogReader(const std::string& path) : path_(path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open the log file '" + path + "'");
+  bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  if (bytes_.size() < 4 || bytes_[0] != 0xED || bytes_[1] != 0xA1 || bytes_[2] != 0xDA || bytes_[3] != 0x01)
+    throw std::runtime_error("'" + path + "' is not an LCM event log (it does not start with LCM's sync word)");
+}
+
+namespace {
+std::uint64_t big_endian(const std::uint8_t* p, int n) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < n; ++i) v = (v << 8) | p[i];
+  return v;
+}
+}  // namespace
+
+std::optional<LogReader::Event> LogReader::next() {
+  constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
+  if (!damage_.empty() || at_ == bytes_.size()) return std::nullopt;
+  const auto stop = [&](const std::string& why) {
+    damage_ = why + " at byte " + std::to_string(at_) + ", after " + std::to_string(count_) + " complete events";
+    return std::nullopt;
+  };
+  if (bytes_.size() - at_ < kHeader) return stop("the log is cut off in an event header");
+  const std::uint8_t* h = bytes_.data() + at_;
+  if (big_endian(h, 4) != 0xEDA1DA01u) return stop("no sync word where an event should start");
+  const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
+  if (channel_len == 0 || channel_len >= 1000 || data_len >= 0x80000000u) return stop("an impossible event length");
+  if (bytes_.size() - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
+  Event e;
+  e.utime = static_cast<std::int64_t>(big_endian(h + 12, 8));
+  const auto* body = h + kHeader;
+  e.channel.assign(reinterpret_cast<const char*>(body), channel_len);
+  e.data.assign(body + channel_len, body + channel_len + data_len);
+  at_ += kHeader + channel_len + data_len;
+  ++count_;
+  return e;
+}
+
+}  // namespace ladder::transport
