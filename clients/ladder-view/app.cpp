@@ -1,0 +1,74 @@
+#include "app.hpp"
+
+#include <cstdio>
+#include <iostream>
+
+namespace ladder::view {
+
+bool Feed::update(client::Millis wait) {
+  // Waits on Stats: the client counts only those that arrive during the call, and the same polls take states.
+  if (auto st = client_.wait_stats([](const ladder_msg_Stats&) { return true; }, wait)) {
+    stats_ = st;
+    news_ = Clock::now();
+  }
+  const auto& s = client_.latest_state();
+  if (!s || (any_ && s->seq == seq_ && s->generation == generation_ && s->sim_time == sim_time_)) return false;
+  any_ = true;
+  seq_ = s->seq;
+  generation_ = s->generation;
+  sim_time_ = s->sim_time;
+  news_ = Clock::now();
+  return true;
+}
+
+const client::State* Feed::state() const {
+  const auto& s = client_.latest_state();
+  const auto& i = client_.scene_info();
+  return s && i && s->generation == i->generation ? &*s : nullptr;
+}
+
+const client::SceneInfo* Feed::info() const { return state() ? &*client_.scene_info() : nullptr; }
+
+bool found_server(const Options& o, client::Client& c) {
+  if (c.wait_for_server(client::Millis(static_cast<long>(o.timeout * 1000)))) return true;
+  std::cerr << "ladder-view: " << no_server(o) << "\n";
+  return false;
+}
+
+std::string no_server(const Options& o) {
+  char t[32];
+  std::snprintf(t, sizeof t, "%g", o.timeout);
+  return "no ladderd with sim id '" + o.sim_id + "' on DDS domain " + std::to_string(o.domain) + " after " + t +
+         " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
+}
+
+Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,
+                  int height) {
+  if (!o.view) return fit(info, state, width, height);
+  Camera c = *o.view;
+  c.width = width;
+  c.height = height;
+  return c;
+}
+
+std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats) {
+  std::vector<std::string> out;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s: %u blocks, top %s, dt %g ms", info.scene_name.c_str(), info.blocks,
+                info.top.c_str(), info.dt * 1e3);
+  out.emplace_back(buf);
+  if (!stats) return out;
+  std::snprintf(buf, sizeof buf, "step p50 %.1f us  p99 %.1f us  missed ticks %llu", stats->step_p50_us,
+                stats->step_p99_us, static_cast<unsigned long long>(stats->missed_deadlines));
+  out.emplace_back(buf);
+  std::snprintf(buf, sizeof buf, "solver %u it, residual %.2g m, largest hinge error %.2g m", stats->solver_iterations,
+                stats->solver_residual, stats->max_hinge_error);
+  out.emplace_back(buf);
+  std::snprintf(buf, sizeof buf, "energy %.6f J  commands %llu accepted, %llu refused", stats->energy,
+                static_cast<unsigned long long>(stats->commands_accepted),
+                static_cast<unsigned long long>(stats->commands_refused));
+  out.emplace_back(buf);
+  return out;
+}
+
+}  // namespace ladder::view

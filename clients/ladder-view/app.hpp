@@ -1,0 +1,73 @@
+// ladder-view's three ways to show a ladder, one function each, and what they share.
+#pragma once
+
+#include "client.hpp"
+#include "draw.hpp"
+
+#include <chrono>
+#include <optional>
+#include <string>
+
+namespace ladder::view {
+
+// Exit codes scripts can rely on (as ladderctl's).
+enum Exit : int {
+  kOk = 0,
+  kFailed = 1,    // could not write the PNG, no display for the window
+  kUsage = 2,     // bad command line
+  kNoServer = 3,  // no ladderd answered within the timeout
+};
+
+struct Options {
+  int domain = 0;
+  std::string sim_id = "ladder";
+  double timeout = 10;  // [s] to find the server (--png, --ascii)
+  int width = 900, height = 700;  // [px] window and PNG; --ascii: characters (0 = the terminal's size)
+  std::string png;
+  std::optional<double> at;       // --png: the first state at or after this sim time
+  std::optional<Camera> view;     // --view X,Y,SCALE: a fixed camera instead of framing the ladder
+  bool ascii = false;
+  int frames = 0;                 // --ascii: stop after this many frames (0 = until Ctrl-C)
+  double fps = 10;                // --ascii: frames per second at most
+};
+
+// What has arrived from the server, polled without blocking (or waiting up to `wait`): a new State, a new Stats,
+// and when anything last came, so that a viewer can tell a paused server (Stats keep coming) from a gone one.
+class Feed {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit Feed(client::Client& c) : client_(c), news_(Clock::now()) {}
+  // Reads DDS for `wait` (less if Stats come); true when a new state came.
+  bool update(client::Millis wait = client::Millis(0));
+  // The latest state and its scene info, once both are there and belong to the same scene generation.
+  const client::State* state() const;
+  const client::SceneInfo* info() const;
+  const std::optional<ladder_msg_Stats>& stats() const { return stats_; }
+  // Seconds since the server last sent anything (a state or stats); a stopped server goes quiet.
+  double quiet() const { return std::chrono::duration<double>(Clock::now() - news_).count(); }
+
+ private:
+  client::Client& client_;
+  std::uint64_t seq_ = 0;
+  std::uint32_t generation_ = 0;
+  double sim_time_ = -1;
+  bool any_ = false;
+  std::optional<ladder_msg_Stats> stats_;
+  Clock::time_point news_;
+};
+
+int run_png(const Options& o);
+int run_ascii(const Options& o);
+int run_window(const Options& o);
+
+// Waits up to --timeout for the server; false (and the no_server message on standard error) if none answered.
+bool found_server(const Options& o, client::Client& c);
+// "no ladderd with sim id ... on DDS domain N after T s; ..." (the same words as ladderctl's).
+std::string no_server(const Options& o);
+// The camera for `state`: the fixed --view if given, else the ladder framed in width x height.
+Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,
+                  int height);
+// The HUD's overlay lines from the latest Stats and SceneInfo.
+std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats);
+
+}  // namespace ladder::view

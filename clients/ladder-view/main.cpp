@@ -1,0 +1,66 @@
+// ladder-view: the viewer of ladderd. A window by default (SDL2); --png FILE writes one snapshot, --ascii draws in
+// the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
+#include "app.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+
+namespace {
+
+// "W x H" -> two positive integers.
+std::string parse_size(const std::string& text, int& w, int& h) {
+  char x = 0, rest = 0;
+  if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &rest) != 3 || (x != 'x' && x != 'X') || w < 1 || h < 1 ||
+      w > 16384 || h > 16384)
+    return "'" + text + "' is not a size like 900x700";
+  return {};
+}
+
+// "X,Y,SCALE" -> a camera centred on (X, Y) m at SCALE px/m.
+std::string parse_view(const std::string& text, std::optional<ladder::view::Camera>& view) {
+  ladder::view::Camera c;
+  char rest = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &c.cx, &c.cy, &c.scale, &rest) != 3 || !(c.scale > 0))
+    return "'" + text + "' is not a view like 0.01,-0.2,1500 (centre X,Y in m, then px per m)";
+  view = c;
+  return {};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace ladder::view;
+  Options o;
+  std::string size, view;
+  CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
+  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
+  app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
+  app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
+      ->check(CLI::PositiveNumber);
+  auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");
+  app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
+  auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (Ctrl-C stops)");
+  png->excludes(ascii);
+  app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(CLI::PositiveNumber);
+  app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
+      ->needs(ascii)
+      ->check(CLI::Range(0.1, 100.0));
+  app.add_option("--size", size, "WxH: window or PNG pixels (default 900x700); --ascii: characters (default: the "
+                                 "terminal's, else 100x40)");
+  app.add_option("--view", view, "X,Y,SCALE: centre the view on (X, Y) m at SCALE px/m instead of framing the ladder");
+  try {
+    app.parse(argc, argv);
+    if (o.ascii) o.width = 100, o.height = 40;
+    std::string error = size.empty() ? "" : parse_size(size, o.width, o.height);
+    if (error.empty() && !view.empty()) error = parse_view(view, o.view);
+    if (!error.empty()) throw CLI::ValidationError(size.empty() || !error.starts_with("'" + size) ? "--view" : "--size",
+                                                   error);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kOk : kUsage;
+  }
+  if (!o.png.empty()) return run_png(o);
+  if (o.ascii) return run_ascii(o);
+  return run_window(o);
+}

@@ -1,0 +1,58 @@
+// --png FILE [--at SIMTIME]: one snapshot of the first state at or after SIMTIME (the latest state without --at).
+#include "app.hpp"
+
+#include <iostream>
+
+namespace ladder::view {
+
+int run_png(const Options& o) {
+  client::Client c(o.domain, o.sim_id);
+  if (!found_server(o, c)) return kNoServer;
+  // Wait for the state as long as the server keeps talking (a far --at may take a while).
+  Feed feed(c);
+  bool told = false;
+  while (true) {
+    feed.update(client::Millis(50));
+    const client::State* s = feed.state();
+    if (s && (!o.at || s->sim_time >= *o.at)) break;
+    if (feed.quiet() > o.timeout) {
+      std::cerr << "ladder-view: ladderd '" << o.sim_id << "' stopped talking before t = " << o.at.value_or(0)
+                << " s\n";
+      return kNoServer;
+    }
+    if (s && s->paused && !told) {
+      std::cerr << "ladder-view: waiting for t >= " << *o.at << " s; the simulation is paused at t = " << s->sim_time
+                << " s\n";
+      told = true;
+    }
+  }
+  // The real-time factor is measured once a second; give it that long to arrive.
+  for (int i = 0; i < 24 && !feed.stats(); ++i) feed.update(client::Millis(50));
+  const client::State state = *feed.state();
+  const client::SceneInfo info = *feed.info();
+
+  const Camera cam = camera_for(o, info, state, o.width, o.height);
+  Hud hud;
+  hud.title = o.sim_id;
+  if (feed.stats()) hud.real_time_factor = feed.stats()->real_time_factor;
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);
+  cairo_t* cr = cairo_create(surface);
+  draw(cr, cam, info, state, hud);
+  cairo_destroy(cr);
+  const cairo_status_t st = cairo_surface_write_to_png(surface, o.png.c_str());
+  cairo_surface_destroy(surface);
+  if (st != CAIRO_STATUS_SUCCESS) {
+    std::cerr << "ladder-view: cannot write " << o.png << ": " << cairo_status_to_string(st) << "\n";
+    return kFailed;
+  }
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "ladder-view: wrote %s (%dx%d px): t = %.6f s, seq %llu, %zu blocks; view centre %.9g,%.9g m, "
+                "%.9g px/m\n",
+                o.png.c_str(), o.width, o.height, state.sim_time, static_cast<unsigned long long>(state.seq),
+                state.blocks.size(), cam.cx, cam.cy, cam.scale);
+  std::cout << buf;
+  return kOk;
+}
+
+}  // namespace ladder::view

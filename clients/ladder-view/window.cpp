@@ -1,0 +1,409 @@
+// The window (SDL2): the drawing module paints a Cairo image, which is copied into an SDL texture each frame the
+// picture changes. The DDS client is polled, never waited on, so the window stays responsive while the server is
+// away; commands are sent at once and their answers picked up in later frames.
+#include "app.hpp"
+
+#include <SDL2/SDL.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+namespace ladder::view {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace cmd = client::cmd;
+
+constexpr double kPokeImpulse = 0.005;  // [N s] ladderctl's default poke
+constexpr double kDragSlop = 4;         // [px] a press that moves farther is a drag, not a click
+constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at most ~33 a second
+constexpr auto kAnswerTimeout = std::chrono::seconds(5);
+
+const std::vector<std::string> kHelp = {
+    "click: poke  drag a block: grab and move it  drag elsewhere / right drag: pan  wheel: zoom",
+    "t tip  space pause/resume  s step (S: 100)  r reset  f follow the ripple  0 fit  arrows pan  +/- zoom",
+    "o overlay  q quit"};
+
+double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// SDL's window, renderer and streaming texture, and the Cairo image the drawing module paints.
+class Screen {
+ public:
+  Screen(const std::string& title, int w, int h) {
+    window_ = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_UNDEFINED, SDL_WINDOWPOS_UNDEFINED, w, h,
+                               SDL_WINDOW_RESIZABLE);
+    if (!window_) throw std::runtime_error(std::string("cannot open a window: ") + SDL_GetError());
+    renderer_ = SDL_CreateRenderer(window_, -1, 0);
+    if (!renderer_) renderer_ = SDL_CreateRenderer(window_, -1, SDL_RENDERER_SOFTWARE);
+    if (!renderer_) throw std::runtime_error(std::string("cannot render: ") + SDL_GetError());
+    resize(w, h);
+  }
+  Screen(const Screen&) = delete;
+  Screen& operator=(const Screen&) = delete;
+  ~Screen() {
+    release();
+    SDL_DestroyRenderer(renderer_);
+    SDL_DestroyWindow(window_);
+  }
+  void resize(int w, int h) {
+    release();
+    width_ = w;
+    height_ = h;
+    // Cairo's ARGB32 is a native-endian 32-bit ARGB word per pixel: SDL's ARGB8888.
+    texture_ = SDL_CreateTexture(renderer_, SDL_PIXELFORMAT_ARGB8888, SDL_TEXTUREACCESS_STREAMING, w, h);
+    surface_ = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h);
+    cr_ = cairo_create(surface_);
+  }
+  cairo_t* cairo() { return cr_; }
+  void present() {
+    cairo_surface_flush(surface_);
+    SDL_UpdateTexture(texture_, nullptr, cairo_image_surface_get_data(surface_),
+                      cairo_image_surface_get_stride(surface_));
+    SDL_RenderClear(renderer_);
+    SDL_RenderCopy(renderer_, texture_, nullptr, nullptr);
+    SDL_RenderPresent(renderer_);
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  void release() {
+    if (cr_) cairo_destroy(cr_);
+    if (surface_) cairo_surface_destroy(surface_);
+    if (texture_) SDL_DestroyTexture(texture_);
+    cr_ = nullptr;
+    surface_ = nullptr;
+    texture_ = nullptr;
+  }
+  SDL_Window* window_ = nullptr;
+  SDL_Renderer* renderer_ = nullptr;
+  SDL_Texture* texture_ = nullptr;
+  cairo_surface_t* surface_ = nullptr;
+  cairo_t* cr_ = nullptr;
+  int width_ = 0, height_ = 0;
+};
+
+class Viewer {
+ public:
+  Viewer(const Options& o, Screen& screen) : o_(o), screen_(screen), client_(o.domain, o.sim_id), feed_(client_) {
+    camera_.width = screen.width();
+    camera_.height = screen.height();
+  }
+
+  void run() {
+    while (!quit_) {
+      if (feed_.update(client::Millis(4))) {
+        on_state();
+        dirty_ = true;
+      }
+      SDL_Event ev;
+      while (SDL_PollEvent(&ev)) on_event(ev);
+      send_drag();
+      take_answers();
+      note_silence();
+      if (follow_) step_follow();
+      // Redraw on change, and a few times a second anyway (the waiting banner, the stats).
+      if (dirty_ || Clock::now() - drawn_at_ > std::chrono::milliseconds(250)) paint();
+    }
+    if (mode_ == Mode::Grab) send(cmd::release(block_), "release block " + std::to_string(block_));
+  }
+
+ private:
+  enum class Mode { None, Pan, Press, Grab };
+
+  // A new state: fit the view to a new scene, and note where the ripple is.
+  void on_state() {
+    const client::State& s = *feed_.state();
+    const client::SceneInfo& info = *feed_.info();
+    if (!fitted_ || info.blocks != scene_blocks_ || info.scene_name != scene_name_) {
+      camera_ = camera_for(o_, info, s, screen_.width(), screen_.height());
+      fitted_ = true;
+      scene_blocks_ = info.blocks;
+      scene_name_ = info.scene_name;
+      std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; view centre %.9g,%.9g m, %.9g px/m\n",
+                  info.scene_name.c_str(), info.blocks, camera_.width, camera_.height, camera_.cx, camera_.cy,
+                  camera_.scale);
+      std::fflush(stdout);
+      flips_.clear();
+    }
+    // The ripple is at the deepest hinge that flipped since the last state.
+    if (flips_.size() == s.hinges.size()) {
+      for (std::size_t k = s.hinges.size(); k-- > 1;)
+        if (s.hinges[k].flips != flips_[k] && k < s.blocks.size()) {
+          ripple_ = hinge_particle(info, static_cast<int>(k), s.hinges[k].corner, s.blocks[k]);
+          break;
+        }
+    }
+    flips_.resize(s.hinges.size());
+    for (std::size_t k = 0; k < s.hinges.size(); ++k) flips_[k] = s.hinges[k].flips;
+  }
+
+  // Says on standard output when the server goes quiet and when it is back (the picture says it too).
+  void note_silence() {
+    const bool quiet = feed_.quiet() > 3;
+    if (quiet == silent_) return;
+    silent_ = quiet;
+    std::printf("ladder-view: ladderd '%s' %s\n", o_.sim_id.c_str(),
+                quiet ? "is not answering; waiting for it" : "answers again");
+    std::fflush(stdout);
+    dirty_ = true;
+  }
+
+  void step_follow() {
+    if (!ripple_) return;
+    const double dx = ripple_->x - camera_.cx, dy = ripple_->y - camera_.cy;
+    if (std::hypot(dx, dy) * camera_.scale < 0.5) return;
+    camera_.cx += 0.1 * dx;
+    camera_.cy += 0.1 * dy;
+    dirty_ = true;
+  }
+
+  void paint() {
+    const auto t0 = Clock::now();
+    Hud hud;
+    hud.title = o_.sim_id;
+    hud.stats = true;
+    if (feed_.stats()) hud.real_time_factor = feed_.stats()->real_time_factor;
+    const client::State* s = feed_.state();
+    if (!s) {
+      hud.banner = "waiting for ladderd '" + o_.sim_id + "' on DDS domain " + std::to_string(o_.domain) + " ...";
+    } else if (feed_.quiet() > 3) {
+      char buf[128];
+      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", feed_.quiet());
+      hud.banner = buf;
+    }
+    if (overlay_) {
+      if (s) hud.lines = stats_lines(*feed_.info(), feed_.stats());
+      char buf[128];
+      std::snprintf(buf, sizeof buf, "draw %.1f ms, %d blocks on screen%s", draw_ms_, drawn_,
+                    follow_ ? ", following the ripple" : "");
+      hud.lines.emplace_back(buf);
+      if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
+      if (!answer_.empty()) hud.lines.push_back(answer_);
+      hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
+    } else {
+      hud.lines.push_back(answer_.empty() ? "o: stats and keys" : answer_);
+    }
+    if (s)
+      drawn_ = draw(screen_.cairo(), camera_, *feed_.info(), *s, hud);
+    else
+      draw_empty(screen_.cairo(), camera_, hud);
+    screen_.present();
+    draw_ms_ = 1e3 * seconds(Clock::now() - t0);
+    drawn_at_ = Clock::now();
+    dirty_ = false;
+  }
+
+  // --- commands ---
+  void send(const ladder_msg_Command& c, const std::string& what) {
+    if (!client_.wait_for_server(client::Millis(0))) {
+      answer_ = what + ": not sent, no server";
+      return;
+    }
+    pending_.push_back({client_.send(c), what, Clock::now()});
+  }
+
+  void take_answers() {
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      const auto a = client_.wait_ack(it->id, client::Millis(0));
+      if (!a && Clock::now() - it->sent < kAnswerTimeout) {
+        ++it;
+        continue;
+      }
+      char buf[96];
+      if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
+      answer_ = it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer");
+      std::printf("ladder-view: %s\n", answer_.c_str());
+      std::fflush(stdout);
+      dirty_ = true;
+      it = pending_.erase(it);
+    }
+  }
+
+  void send_drag() {
+    if (mode_ != Mode::Grab || !drag_to_ || Clock::now() - dragged_at_ < kDragPeriod) return;
+    send(cmd::drag(block_, drag_to_->x, drag_to_->y), "drag block " + std::to_string(block_));
+    drag_to_.reset();
+    dragged_at_ = Clock::now();
+  }
+
+  // --- input ---
+  void on_event(const SDL_Event& ev) {
+    switch (ev.type) {
+      case SDL_QUIT:
+        quit_ = true;
+        break;
+      case SDL_WINDOWEVENT:
+        if (ev.window.event == SDL_WINDOWEVENT_SIZE_CHANGED) {
+          screen_.resize(ev.window.data1, ev.window.data2);
+          camera_.width = ev.window.data1;
+          camera_.height = ev.window.data2;
+        }
+        dirty_ = true;
+        break;
+      case SDL_KEYDOWN:
+        on_key(ev.key.keysym);
+        break;
+      case SDL_MOUSEWHEEL: {
+        int x = 0, y = 0;
+        SDL_GetMouseState(&x, &y);
+        camera_.zoom_about({double(x), double(y)}, std::pow(1.2, ev.wheel.y));
+        dirty_ = true;
+        break;
+      }
+      case SDL_MOUSEBUTTONDOWN:
+        on_press(ev.button);
+        break;
+      case SDL_MOUSEMOTION:
+        on_motion(ev.motion);
+        break;
+      case SDL_MOUSEBUTTONUP:
+        on_release(ev.button);
+        break;
+      default:
+        break;
+    }
+  }
+
+  void on_key(const SDL_Keysym& k) {
+    const bool shift = (k.mod & KMOD_SHIFT) != 0;
+    const double pan = 0.1 * std::min(camera_.width, camera_.height) / camera_.scale;
+    const client::State* s = feed_.state();
+    switch (k.sym) {
+      case SDLK_q:
+      case SDLK_ESCAPE: quit_ = true; break;
+      case SDLK_t: send(cmd::tip(), "tip"); break;
+      case SDLK_SPACE:
+        if (s && s->paused)
+          send(cmd::resume(), "resume");
+        else
+          send(cmd::pause(), "pause");
+        break;
+      case SDLK_s: send(cmd::step(shift ? 100 : 1), shift ? "step 100" : "step 1"); break;
+      case SDLK_r: send(cmd::reset(), "reset"); break;
+      case SDLK_f: follow_ = !follow_; break;
+      case SDLK_o: overlay_ = !overlay_; break;
+      case SDLK_0:
+      case SDLK_HOME:
+        if (s) camera_ = fit(*feed_.info(), *s, screen_.width(), screen_.height());
+        follow_ = false;
+        break;
+      case SDLK_PLUS:
+      case SDLK_EQUALS:
+      case SDLK_KP_PLUS: camera_.scale *= 1.25; break;
+      case SDLK_MINUS:
+      case SDLK_KP_MINUS: camera_.scale /= 1.25; break;
+      case SDLK_LEFT: camera_.cx -= pan; break;
+      case SDLK_RIGHT: camera_.cx += pan; break;
+      case SDLK_UP: camera_.cy += pan; break;
+      case SDLK_DOWN: camera_.cy -= pan; break;
+      default: return;
+    }
+    dirty_ = true;
+  }
+
+  void on_press(const SDL_MouseButtonEvent& b) {
+    press_ = {double(b.x), double(b.y)};
+    mode_ = Mode::Pan;
+    const client::State* s = feed_.state();
+    if (b.button != SDL_BUTTON_LEFT || !s) return;
+    const Point w = camera_.to_world(press_);
+    block_ = block_at(*feed_.info(), *s, w);
+    if (block_ < 0) return;
+    mode_ = Mode::Press;
+    grab_point_ = to_block_frame(s->blocks[block_], w);
+    press_world_ = w;
+  }
+
+  void on_motion(const SDL_MouseMotionEvent& m) {
+    const Point at{double(m.x), double(m.y)};
+    if (const client::State* s = feed_.state()) {
+      const int h = block_at(*feed_.info(), *s, camera_.to_world(at));
+      if (h != hover_) dirty_ = overlay_;
+      hover_ = h;
+    }
+    if (mode_ == Mode::Pan) {
+      camera_.cx -= m.xrel / camera_.scale;
+      camera_.cy += m.yrel / camera_.scale;
+      follow_ = false;
+      dirty_ = true;
+    } else if (mode_ == Mode::Press && std::hypot(at.x - press_.x, at.y - press_.y) > kDragSlop) {
+      // Hold the block by the point that was pressed, pulled toward the cursor.
+      ladder_msg_Command c = cmd::grab_to(block_, press_world_.x, press_world_.y);
+      c.has_point = true;
+      c.c = grab_point_.x;
+      c.d = grab_point_.y;
+      send(c, "grab block " + std::to_string(block_));
+      mode_ = Mode::Grab;
+      drag_to_ = camera_.to_world(at);
+    } else if (mode_ == Mode::Grab) {
+      drag_to_ = camera_.to_world(at);
+    }
+  }
+
+  void on_release(const SDL_MouseButtonEvent&) {
+    if (mode_ == Mode::Press) {
+      // A click pokes the block at that point, away from the side it was clicked on.
+      const client::State* s = feed_.state();
+      const double dir = s && press_world_.x > s->blocks[block_].x ? -1 : 1;
+      send(cmd::poke_at(block_, dir * kPokeImpulse, 0, press_world_.x, press_world_.y),
+           "poke block " + std::to_string(block_));
+    } else if (mode_ == Mode::Grab) {
+      dragged_at_ = {};
+      send_drag();
+      send(cmd::release(block_), "release block " + std::to_string(block_));
+    }
+    mode_ = Mode::None;
+  }
+
+  struct Pending {
+    std::uint64_t id;
+    std::string what;
+    Clock::time_point sent;
+  };
+
+  const Options& o_;
+  Screen& screen_;
+  client::Client client_;
+  Feed feed_;
+  Camera camera_;
+  bool fitted_ = false, follow_ = false, overlay_ = false, dirty_ = true, quit_ = false, silent_ = false;
+  std::uint32_t scene_blocks_ = 0;
+  std::string scene_name_;
+  std::vector<std::uint32_t> flips_;
+  std::optional<Point> ripple_;
+  std::vector<Pending> pending_;
+  std::string answer_;
+  Clock::time_point drawn_at_{}, dragged_at_{};
+  double draw_ms_ = 0;
+  int drawn_ = 0, hover_ = -1;
+  // The mouse: what a left press started, on which block, where.
+  Mode mode_ = Mode::None;
+  int block_ = -1;
+  Point press_, press_world_, grab_point_;
+  std::optional<Point> drag_to_;
+};
+
+}  // namespace
+
+int run_window(const Options& o) {
+  if (SDL_Init(SDL_INIT_VIDEO) != 0) {
+    std::cerr << "ladder-view: no display (" << SDL_GetError() << "); use --png FILE or --ascii\n";
+    return kFailed;
+  }
+  int code = kOk;
+  try {
+    Screen screen("ladder-view: " + o.sim_id, o.width, o.height);
+    Viewer(o, screen).run();
+  } catch (const std::exception& e) {
+    std::cerr << "ladder-view: " << e.what() << "\n";
+    code = kFailed;
+  }
+  SDL_Quit();
+  return code;
+}
+
+}  // namespace ladder::view
