@@ -1,0 +1,544 @@
+// ladder-view: the drawing module on its own, then the real binary against a real ladderd over Cyclone DDS:
+// PNG snapshots checked pixel by pixel against the state, the terminal rendering, the window under Xvfb with a
+// synthetic click (xdotool) that the server must accept, and a viewer in another network namespace.
+#include "ascii.hpp"
+#include "client.hpp"
+#include "draw.hpp"
+#include "process.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <regex>
+
+namespace ladder::test {
+namespace {
+
+using client::Client;
+using client::Millis;
+using view::Camera;
+using view::Point;
+using view::Rgb;
+namespace cmd = client::cmd;
+using Clock = std::chrono::steady_clock;
+
+constexpr Millis kStart{15000};  // generous: CI runs two tests at once on two cores
+constexpr Millis kAnswer{5000};
+const std::string kBin = LADDER_BINARY_DIR;
+const std::string kViewer = kBin + "/clients/ladder-view";
+
+std::string test_name() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  return std::string(info->test_suite_name()) + "." + info->name();
+}
+
+struct Result {
+  int code = -1;
+  std::string output;
+};
+
+Result shell(const std::string& command) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  Result r;
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// Polls `done` until it holds or the deadline passes.
+bool eventually(const std::function<bool()>& done, Millis timeout) {
+  const auto deadline = Clock::now() + timeout;
+  while (!done()) {
+    if (Clock::now() > deadline) return false;
+    std::this_thread::sleep_for(Millis(50));
+  }
+  return true;
+}
+
+// Colours: a block's face must be its own parity's face colour (Cairo paints a polygon's inside exactly).
+int distance(Rgb a, Rgb b) { return std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b); }
+bool is_face(Rgb c) { return distance(c, view::kFaceEven) < 12 || distance(c, view::kFaceOdd) < 12; }
+
+// An RGB picture: a PNG (Cairo reads it) or an X screen (XWD, as Xvfb -fbdir keeps it).
+struct Image {
+  int width = 0, height = 0;
+  std::vector<Rgb> pixels;
+  Rgb at(Point p) const {
+    const int x = static_cast<int>(std::floor(p.x)), y = static_cast<int>(std::floor(p.y));
+    if (x < 0 || y < 0 || x >= width || y >= height) return {-1000, -1000, -1000};
+    return pixels[static_cast<std::size_t>(y) * width + x];
+  }
+};
+
+Image read_png(const std::string& path) {
+  Image img;
+  cairo_surface_t* s = cairo_image_surface_create_from_png(path.c_str());
+  if (cairo_surface_status(s) == CAIRO_STATUS_SUCCESS) {
+    img.width = cairo_image_surface_get_width(s);
+    img.height = cairo_image_surface_get_height(s);
+    const unsigned char* data = cairo_image_surface_get_data(s);
+    const int stride = cairo_image_surface_get_stride(s);
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        const auto v = *reinterpret_cast<const std::uint32_t*>(data + y * stride + 4 * x);
+        img.pixels.push_back({int((v >> 16) & 0xff), int((v >> 8) & 0xff), int(v & 0xff)});
+      }
+  }
+  cairo_surface_destroy(s);
+  return img;
+}
+
+void write_png(const Image& img, const std::string& path) {
+  cairo_surface_t* s = cairo_image_surface_create(CAIRO_FORMAT_RGB24, img.width, img.height);
+  unsigned char* data = cairo_image_surface_get_data(s);
+  const int stride = cairo_image_surface_get_stride(s);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const Rgb c = img.pixels[static_cast<std::size_t>(y) * img.width + x];
+      *reinterpret_cast<std::uint32_t*>(data + y * stride + 4 * x) = std::uint32_t(c.r << 16 | c.g << 8 | c.b);
+    }
+  cairo_surface_mark_dirty(s);
+  cairo_surface_write_to_png(s, path.c_str());
+  cairo_surface_destroy(s);
+}
+
+// XWD: a header of big-endian 32-bit words, a colour map, then the pixels (32 bits, 0x00RRGGBB at depth 24).
+Image read_xwd(const std::string& path) {
+  Image img;
+  std::ifstream in(path, std::ios::binary);
+  std::vector<unsigned char> b((std::istreambuf_iterator<char>(in)), {});
+  const auto word = [&](int i) {
+    const std::size_t o = 4 * static_cast<std::size_t>(i);
+    return std::uint32_t(b[o]) << 24 | std::uint32_t(b[o + 1]) << 16 | std::uint32_t(b[o + 2]) << 8 | b[o + 3];
+  };
+  if (b.size() < 100 || word(11) != 32) return img;
+  const std::size_t start = word(0) + 12 * std::size_t(word(19)), line = word(12);
+  img.width = int(word(4));
+  img.height = int(word(5));
+  const bool msb = word(7) == 1;
+  if (b.size() < start + line * img.height) return {};
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      const unsigned char* p = &b[start + line * y + 4 * x];
+      const std::uint32_t v = msb ? (std::uint32_t(p[0]) << 24 | p[1] << 16 | p[2] << 8 | p[3])
+                                  : (std::uint32_t(p[3]) << 24 | p[2] << 16 | p[1] << 8 | p[0]);
+      img.pixels.push_back({int((v >> 16) & 0xff), int((v >> 8) & 0xff), int(v & 0xff)});
+    }
+  return img;
+}
+
+// "view centre X,Y m, S px/m" in ladder-view's output -> its camera.
+std::optional<Camera> camera_in(const std::string& output, int width, int height) {
+  std::smatch m;
+  if (!std::regex_search(output, m, std::regex(R"(view centre ([-0-9.e+]+),([-0-9.e+]+) m, ([0-9.e+]+) px/m)")))
+    return std::nullopt;
+  Camera c;
+  c.cx = std::stod(m[1]);
+  c.cy = std::stod(m[2]);
+  c.scale = std::stod(m[3]);
+  c.width = width;
+  c.height = height;
+  return c;
+}
+
+// Every block's centre, projected, shows that block's face colour; `offset` is the picture's place on the image.
+void expect_blocks_at_centres(const Image& img, const Camera& cam, const client::State& s, Point offset = {}) {
+  ASSERT_GT(img.width, 0) << "no picture";
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+    const Point p = cam.to_screen({s.blocks[i].x, s.blocks[i].y});
+    const Rgb c = img.at({p.x + offset.x, p.y + offset.y}), want = view::face_colour(static_cast<int>(i));
+    EXPECT_LT(distance(c, want), 12) << "block " << i << " at pixel (" << p.x + offset.x << ", " << p.y + offset.y
+                                     << "): rgb " << c.r << "," << c.g << "," << c.b << ", want " << want.r << ","
+                                     << want.g << "," << want.b;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The drawing module alone.
+
+client::SceneInfo classic_info(std::uint32_t blocks) {
+  client::SceneInfo info;
+  info.blocks = blocks;
+  info.length = 0.064;
+  info.thickness = 0.013;
+  return info;
+}
+
+// A hanging zigzag of n blocks (each tilted by +-atan(thickness / length), as the real one at rest).
+client::State zigzag(int n) {
+  client::State s;
+  const double tilt = std::atan(0.013 / 0.064);
+  for (int i = 0; i < n; ++i) {
+    s.blocks.push_back({i % 2 ? 0.004 : 0.0, -0.066 * i, i % 2 ? tilt : -tilt});
+    s.hinges.push_back({static_cast<std::uint8_t>(i % 2 ? 0 : 3), ladder_msg_HINGED, 0});
+  }
+  if (n > 3) s.hinges[3].status = ladder_msg_LOCKED;
+  return s;
+}
+
+TEST(Draw, FacesAtProjectedCentresHitTestsAndAscii) {
+  const client::SceneInfo info = classic_info(6);
+  const client::State s = zigzag(6);
+  const Camera cam = view::fit(info, s, 300, 500);
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, 300, 500);
+  cairo_t* cr = cairo_create(surface);
+  EXPECT_EQ(view::draw(cr, cam, info, s, view::Hud{}), 6);
+  cairo_destroy(cr);
+  const std::string path = kBin + "/tests/Draw.png";
+  ASSERT_EQ(cairo_surface_write_to_png(surface, path.c_str()), CAIRO_STATUS_SUCCESS);
+  cairo_surface_destroy(surface);
+  const Image img = read_png(path);
+  expect_blocks_at_centres(img, cam, s);
+  EXPECT_EQ(distance(img.at({299, 499}), view::kBackground), 0);
+  // The locked hinge 3 is marked: its red dot sits on the hinge particle.
+  const Point h = cam.to_screen(view::hinge_particle(info, 3, s.hinges[3].corner, s.blocks[3]));
+  EXPECT_LT(distance(img.at(h), view::kLocked), 12);
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(view::block_at(info, s, {s.blocks[i].x, s.blocks[i].y}), i);
+  EXPECT_EQ(view::block_at(info, s, {0.5, 0.5}), -1);
+  // Text: one cell row per two pixel rows; every block's number at its centre.
+  const std::string text = view::render_ascii(view::fit(info, s, 60, 60), info, s, 60, 30);
+  for (char d = '0'; d <= '5'; ++d) EXPECT_NE(text.find(d), std::string::npos) << text;
+  EXPECT_GT(std::count(text.begin(), text.end(), '#'), 30) << text;
+}
+
+TEST(Draw, OnlyWhatIsOnScreenOfAHundredThousandBlocks) {
+  const client::SceneInfo info = classic_info(100000);
+  const client::State s = zigzag(100000);
+  Camera cam = view::fit(info, s, 800, 600);  // the top 40 blocks
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, 800, 600);
+  cairo_t* cr = cairo_create(surface);
+  const int drawn = view::draw(cr, cam, info, s, view::Hud{});
+  EXPECT_GE(drawn, 40);
+  EXPECT_LT(drawn, 60);
+  cam.cy = -0.066 * 70000;  // far down the ladder: the blocks there, none of the others
+  const int far = view::draw(cr, cam, info, s, view::Hud{});
+  EXPECT_GE(far, 40);
+  EXPECT_LT(far, 60);
+  cairo_destroy(cr);
+  cairo_surface_destroy(surface);
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The real binary against a real server.
+
+class View : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string name = test_name();
+    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
+    for (char& ch : sim_id_)
+      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
+    domain_ = 1 + static_cast<int>(std::hash<std::string>{}(name) % 230);
+    log_path_ = kBin + "/tests/" + name + ".log";
+    out_ = kBin + "/tests/" + name;
+    server_.emplace(std::vector<std::string>{kBin + "/server/ladderd", "--domain", std::to_string(domain_),
+                                             "--sim-id", sim_id_, "--log-level", "debug"},
+                    log_path_);
+    client_.emplace(domain_, sim_id_, "test");
+    ASSERT_TRUE(client_->wait_for_server(kStart)) << "no ladderd on domain " << domain_ << "; its log:\n"
+                                                  << server_->log();
+  }
+
+  std::string where() const { return " --domain " + std::to_string(domain_) + " --sim-id " + sim_id_; }
+  Result viewer(const std::string& args) { return shell(kViewer + where() + " --timeout 30 " + args); }
+
+  client::State pause() {
+    const client::Ack a = client_->call(cmd::pause(), kAnswer);
+    EXPECT_TRUE(a.accepted) << a.reason;
+    auto s = client_->wait_state([&](const client::State& st) { return st.commands_applied >= a.command_seq; },
+                                 kAnswer);
+    EXPECT_TRUE(s && s->paused);
+    return s.value_or(client::State{});
+  }
+
+  int domain_ = 0;
+  std::string sim_id_, log_path_, out_;
+  std::optional<Process> server_;
+  std::optional<Client> client_;
+};
+
+// Before and after a tip (the server paused for each, so that the state drawn is the state the test holds): every
+// block is where the state puts it, and where a block was before and is no longer, the picture changed.
+TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
+  const client::State before = pause();
+  const Result a = viewer("--png " + out_ + "-before.png --size 500x700");
+  ASSERT_EQ(a.code, 0) << a.output;
+  const auto cam = camera_in(a.output, 500, 700);
+  ASSERT_TRUE(cam) << a.output;
+  const Image img0 = read_png(out_ + "-before.png");
+  expect_blocks_at_centres(img0, *cam, before);
+
+  ASSERT_TRUE(client_->call(cmd::resume(), kAnswer).accepted);
+  ASSERT_TRUE(client_->call(cmd::tip(), kAnswer).accepted);
+  // The ripple has reached the bottom hinge; then let it settle a little.
+  const auto rippled = client_->wait_state(
+      [](const client::State& s) { return s.hinges.size() == 6 && s.hinges[5].flips >= 1; }, Millis(30000));
+  ASSERT_TRUE(rippled) << "no flip-flop at hinge 5";
+  ASSERT_TRUE(client_->wait_state([&](const client::State& s) { return s.sim_time > rippled->sim_time + 0.5; },
+                                  Millis(30000)));
+  const client::State after = pause();
+  char at[64];
+  std::snprintf(at, sizeof at, "%.17g", after.sim_time);
+  char view[128];
+  std::snprintf(view, sizeof view, "%.17g,%.17g,%.17g", cam->cx, cam->cy, cam->scale);
+  const Result b = viewer("--png " + out_ + "-after.png --size 500x700 --at " + at + " --view " + view);
+  ASSERT_EQ(b.code, 0) << b.output;
+  const Image img1 = read_png(out_ + "-after.png");
+  expect_blocks_at_centres(img1, *cam, after);
+
+  // Where a block's centre was and no block is now (2 px clear of every block), the face is gone.
+  const client::SceneInfo info = *client_->scene_info();
+  int vacated = 0;
+  for (const auto& p : before.blocks) {
+    bool clear = true;
+    for (double dx : {-2.0, 0.0, 2.0})
+      for (double dy : {-2.0, 0.0, 2.0}) clear = clear && view::block_at(info, after, {p.x + dx / cam->scale,
+                                                                                           p.y + dy / cam->scale}) < 0;
+    if (!clear) continue;
+    ++vacated;
+    const Point q = cam->to_screen({p.x, p.y});
+    EXPECT_TRUE(is_face(img0.at(q)));
+    EXPECT_FALSE(is_face(img1.at(q))) << "the picture after the tip still shows a face at (" << q.x << ", " << q.y
+                                      << ")";
+  }
+  EXPECT_GE(vacated, 3) << "the blocks hardly moved";
+}
+
+TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
+  const Result r = viewer("--ascii --frames 1 --size 60x40");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::size_t picture = r.output.find('\n');  // the first line is the heading
+  ASSERT_NE(picture, std::string::npos);
+  EXPECT_NE(r.output.find(sim_id_ + "  t = "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("6 blocks"), std::string::npos) << r.output;
+  const std::string art = r.output.substr(picture);
+  for (char d = '0'; d <= '5'; ++d) EXPECT_NE(art.find(d), std::string::npos) << "no block " << d << "\n" << art;
+  EXPECT_EQ(art.find('6'), std::string::npos) << art;
+  EXPECT_GT(std::count(art.begin(), art.end(), '#'), 40) << art;
+}
+
+TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
+  const Result r = shell(kViewer + " --domain " + std::to_string(domain_) + " --sim-id nobody-here --timeout 1 --png " +
+                         out_ + ".png");
+  EXPECT_EQ(r.code, 3) << r.output;
+  EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here'"), std::string::npos) << r.output;
+  EXPECT_EQ(shell(kViewer + " --size 12").code, 2);
+  EXPECT_EQ(shell(kViewer + " --at 1").code, 2);  // --at needs --png
+}
+
+// An X server of our own for the window; the screen is an XWD file we can read at any time.
+class Xvfb {
+ public:
+  explicit Xvfb(const std::string& dir) : display_(display_name()), dir_(dir) {
+    mkdir(dir.c_str(), 0755);
+    process_.emplace(std::vector<std::string>{"/usr/bin/Xvfb", display_, "-screen", "0", "1024x768x24", "-fbdir", dir,
+                                              "-nolisten", "tcp"},
+                     dir + "/xvfb.log");
+  }
+  bool ready() const {
+    struct stat st {};
+    return stat(("/tmp/.X11-unix/X" + display_.substr(1)).c_str(), &st) == 0;
+  }
+  const std::string& display() const { return display_; }
+  // A display number from the pid, so that two tests at once do not meet.
+  static std::string display_name() {
+    char name[16];
+    std::snprintf(name, sizeof name, ":%d", 100 + getpid() % 400);
+    return name;
+  }
+  Image screen() const { return read_xwd(dir_ + "/Xvfb_screen0"); }
+  std::string log() const { return process_->log(); }
+
+ private:
+  std::string display_, dir_;
+  std::optional<Process> process_;
+};
+
+TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
+  const client::State s = pause();  // a still picture
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process viewer({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_, "--size", "640x600"},
+                 out_ + "-viewer.log");
+  std::optional<Camera> cam;
+  ASSERT_TRUE(eventually([&] { return (cam = camera_in(viewer.log(), 640, 600)).has_value(); }, kStart))
+      << viewer.log();
+  // Where the window is on the screen.
+  const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
+  Result geometry;
+  ASSERT_TRUE(eventually(
+      [&] {
+        geometry = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowgeometry --shell");
+        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
+      },
+      kStart))
+      << geometry.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
+  const Point origin{std::stod(m[1]), std::stod(m[2])};
+
+  // The screenshot shows each block at its projected centre (once the window has painted).
+  const auto shows_ladder = [&] {
+    const Image img = x.screen();
+    for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+      const Point p = cam->to_screen({s.blocks[i].x, s.blocks[i].y});
+      if (distance(img.at({p.x + origin.x, p.y + origin.y}), view::face_colour(int(i))) >= 12) return false;
+    }
+    return true;
+  };
+  if (!eventually(shows_ladder, kStart)) {
+    write_png(x.screen(), out_ + "-screen.png");
+    FAIL() << "the screen does not show the ladder (window at " << origin.x << ", " << origin.y << "; see " << out_
+           << "-screen.png); the viewer's log:\n" << viewer.log();
+  }
+  expect_blocks_at_centres(x.screen(), *cam, s, origin);
+
+  // A click on block 3 pokes it: the viewer reports the server's acceptance, the server counts it and logs it.
+  const Point p = cam->to_screen({s.blocks[3].x, s.blocks[3].y});
+  const Result click = shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
+                             std::to_string(int(p.y + origin.y)) + " click 1");
+  ASSERT_EQ(click.code, 0) << click.output;
+  EXPECT_TRUE(eventually([&] { return viewer.log().find("poke block 3: accepted") != std::string::npos; }, kStart))
+      << viewer.log();
+  const auto stats = client_->wait_stats([](const ladder_msg_Stats& st) { return st.commands_accepted >= 2; },
+                                         Millis(10000));
+  EXPECT_TRUE(stats) << "the server did not count the poke (pause + poke = 2 accepted)";
+  EXPECT_TRUE(eventually([&] { return server_->log().find("poke 1 from ") != std::string::npos; }, kAnswer))
+      << server_->log();
+
+  // The server stops: the viewer says it waits; a new server comes: the viewer shows it and its clicks work again.
+  const auto count = [&](const std::string& words) {
+    const std::string log = viewer.log();
+    int n = 0;
+    for (std::size_t at = log.find(words); at != std::string::npos; at = log.find(words, at + 1)) ++n;
+    return n;
+  };
+  server_->signal(SIGTERM);
+  ASSERT_TRUE(server_->wait_exit(kStart));
+  EXPECT_TRUE(eventually([&] { return count("is not answering; waiting for it") == 1; }, kStart)) << viewer.log();
+  server_.emplace(std::vector<std::string>{kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id",
+                                           sim_id_, "--log-level", "debug"},
+                  log_path_ + ".2");
+  ASSERT_TRUE(eventually([&] { return count("answers again") == 1; }, kStart)) << viewer.log();
+  ASSERT_EQ(shell(xdo + "click 1").code, 0);  // the pointer is still on block 3, which hangs where it did
+  EXPECT_TRUE(eventually([&] { return count("poke block 3: accepted") == 2; }, kStart)) << viewer.log();
+  viewer.signal(SIGTERM);
+  EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// A remote viewer: ladderd in one network namespace, ladder-view and ladderctl in another, joined by a veth pair
+// with an address on each end, each side's Cyclone configuration naming its interface and the other's address.
+
+std::string ip_binary() {
+  for (const char* p : {"/usr/sbin/ip", "/sbin/ip", "/usr/bin/ip", "/bin/ip"})
+    if (access(p, X_OK) == 0) return p;
+  return "ip";
+}
+
+// Two namespaces and the veth pair between them; deleted with the object.
+class Netns {
+ public:
+  explicit Netns(int tag)
+      : a_("lv-a-" + std::to_string(tag)), b_("lv-b-" + std::to_string(tag)),
+        va_("lva" + std::to_string(tag % 100000)), vb_("lvb" + std::to_string(tag % 100000)),
+        addr_a_("10.231." + std::to_string(tag % 250) + ".1"), addr_b_("10.231." + std::to_string(tag % 250) + ".2") {}
+  ~Netns() {
+    for (const std::string& ns : created_) shell(ip_binary() + " netns del " + ns);
+  }
+  // Empty when it worked, else what failed.
+  std::string create() {
+    const std::string ip = ip_binary();
+    for (const std::string& ns : {a_, b_}) {
+      const Result r = shell(ip + " netns add " + ns);
+      if (r.code != 0) return "ip netns add " + ns + ": " + r.output;
+      created_.push_back(ns);
+    }
+    const std::vector<std::string> steps = {
+        "link add " + va_ + " netns " + a_ + " type veth peer name " + vb_ + " netns " + b_,
+        "-n " + a_ + " addr add " + addr_a_ + "/24 dev " + va_,
+        "-n " + b_ + " addr add " + addr_b_ + "/24 dev " + vb_,
+        "-n " + a_ + " link set " + va_ + " up",
+        "-n " + b_ + " link set " + vb_ + " up",
+        "-n " + a_ + " link set lo up",
+        "-n " + b_ + " link set lo up"};
+    for (const std::string& step : steps)
+      if (const Result r = shell(ip + " " + step); r.code != 0) return "ip " + step + ": " + r.output;
+    return {};
+  }
+  // A Cyclone configuration for one side: its veth, unicast discovery of the other side's address.
+  static std::string cyclone_xml(const std::string& interface, const std::string& peer) {
+    return "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=\"any\"><General><Interfaces>"
+           "<NetworkInterface name=\"" + interface + "\"/></Interfaces><AllowMulticast>false</AllowMulticast>"
+           "</General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>32"
+           "</MaxAutoParticipantIndex><Peers><Peer address=\"" + peer + "\"/></Peers></Discovery></Domain>"
+           "</CycloneDDS>";
+  }
+  // The command line prefix that runs a program in namespace a (server side) or b (client side).
+  std::string in_a(const std::string& xml_path) const { return in(a_, xml_path); }
+  std::string in_b(const std::string& xml_path) const { return in(b_, xml_path); }
+  const std::string& a_ns() const { return a_; }
+  const std::string& va() const { return va_; }
+  const std::string& vb() const { return vb_; }
+  const std::string& addr_a() const { return addr_a_; }
+  const std::string& addr_b() const { return addr_b_; }
+
+ private:
+  std::string in(const std::string& ns, const std::string& xml_path) const {
+    return ip_binary() + " netns exec " + ns + " env CYCLONEDDS_URI=file://" + xml_path + " ";
+  }
+  std::string a_, b_, va_, vb_, addr_a_, addr_b_;
+  std::vector<std::string> created_;
+};
+
+TEST_F(View, RemoteViewerInAnotherNetworkNamespace) {
+  Netns net(getpid());
+  if (const std::string why = net.create(); !why.empty())
+    GTEST_SKIP() << "cannot create network namespaces here (needs root or CAP_NET_ADMIN): " << why;
+  const std::string xml_a = out_ + "-a.xml", xml_b = out_ + "-b.xml";
+  std::ofstream(xml_a) << Netns::cyclone_xml(net.va(), net.addr_b());
+  std::ofstream(xml_b) << Netns::cyclone_xml(net.vb(), net.addr_a());
+  // The remote server runs the same built-in scene as this test's local one, so both rest in the same state.
+  Process remote({ip_binary(), "netns", "exec", net.a_ns(), "env", "CYCLONEDDS_URI=file://" + xml_a,
+                  kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--log-level",
+                  "debug"},
+                 out_ + "-remote.log");
+  const client::State rest = pause();
+  const std::string where_b = net.in_b(xml_b);
+  const Result a = shell(where_b + kViewer + where() + " --timeout 30 --png " + out_ + "-remote.png --size 500x700");
+  ASSERT_EQ(a.code, 0) << a.output << "\nremote server:\n" << remote.log();
+  const auto cam = camera_in(a.output, 500, 700);
+  ASSERT_TRUE(cam) << a.output;
+  expect_blocks_at_centres(read_png(out_ + "-remote.png"), *cam, rest);
+
+  const Result tip = shell(where_b + kBin + "/clients/ladderctl tip" + where() + " --timeout 30");
+  ASSERT_EQ(tip.code, 0) << tip.output;
+  EXPECT_NE(tip.output.find("accepted"), std::string::npos) << tip.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(tip.output, m, std::regex(R"(accepted at t = ([0-9.]+) s)"))) << tip.output;
+  char at[64];
+  std::snprintf(at, sizeof at, "%.3f", std::stod(m[1]) + 1.0);
+  const Result b = shell(where_b + kViewer + where() + " --timeout 30 --png " + out_ + "-remote-tipped.png --size 500x700 --at " + at);
+  ASSERT_EQ(b.code, 0) << b.output;
+  ASSERT_TRUE(std::regex_search(b.output, m, std::regex(R"(t = ([0-9.]+) s)"))) << b.output;
+  EXPECT_GE(std::stod(m[1]), std::stod(at));
+  // The ladder moved: at some resting block centres the tipped picture no longer shows a face.
+  const Image tipped = read_png(out_ + "-remote-tipped.png");
+  const auto cam2 = camera_in(b.output, 500, 700);
+  ASSERT_TRUE(cam2);
+  int faces = 0;
+  for (const Rgb& c : tipped.pixels) faces += is_face(c);
+  EXPECT_GT(faces, 1000) << "the tipped picture shows no ladder";
+  EXPECT_NE(remote.log().find("tip 1 from "), std::string::npos) << remote.log();
+}
+
+}  // namespace
+}  // namespace ladder::test
