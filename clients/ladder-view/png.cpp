@@ -33,7 +33,7 @@ int run_png(const Options& o) {
 
   const Camera cam = camera_for(o, info, state, o.width, o.height);
   Hud hud;
-  hud.title = o.sim_id;
+  hud.title = info.replay ? o.sim_id + " (REPLAY)" : o.sim_id;
   if (feed.stats()) hud.real_time_factor = feed.stats()->real_time_factor;
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);
   cairo_t* cr = cairo_create(surface);

@@ -164,7 +164,7 @@ class Viewer {
   void paint() {
     const auto t0 = Clock::now();
     Hud hud;
-    hud.title = o_.sim_id;
+    hud.title = feed_.info() && feed_.info()->replay ? o_.sim_id + " (REPLAY)" : o_.sim_id;
     hud.stats = true;
     if (feed_.stats()) hud.real_time_factor = feed_.stats()->real_time_factor;
     const client::State* s = feed_.state();

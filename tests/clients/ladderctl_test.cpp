@@ -17,20 +17,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 const std::string kLadderctl = std::string(LADDER_BINARY_DIR) + "/clients/ladderctl";
 
-struct Result {
-  int code = -1;
-  std::string output;
-};
-
-Result run(const std::string& args) {
-  FILE* pipe = popen((kLadderctl + " " + args + " 2>&1").c_str(), "r");
-  Result r;
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+Result run(const std::string& args) { return shell(kLadderctl + " " + args); }
 
 class Ladderctl : public ::testing::Test {
  protected:

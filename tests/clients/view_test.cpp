@@ -37,21 +37,6 @@ std::string test_name() {
   return std::string(info->test_suite_name()) + "." + info->name();
 }
 
-struct Result {
-  int code = -1;
-  std::string output;
-};
-
-Result shell(const std::string& command) {
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  Result r;
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
 // Polls `done` until it holds or the deadline passes.
 bool eventually(const std::function<bool()>& done, Millis timeout) {
   const auto deadline = Clock::now() + timeout;

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <functional>
 #include <optional>
@@ -69,5 +70,20 @@ class Process {
   std::string log_;
   std::optional<int> status_;
 };
+
+// A shell command's exit code (128 + signal when a signal ended it) and its output (standard error included).
+struct Result {
+  int code = -1;
+  std::string output;
+};
+inline Result shell(const std::string& command) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  Result r;
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
+  return r;
+}
 
 }  // namespace ladder::test

@@ -8,10 +8,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cairo.h>
 #include <lcm/lcm-cpp.hpp>
 
 #include <filesystem>
 #include <fstream>
+#include <cstring>
 #include <random>
 
 namespace ladder::test {
@@ -27,19 +29,6 @@ const std::string kLadderd = std::string(LADDER_BINARY_DIR) + "/server/ladderd";
 const std::string kLadderctl = std::string(LADDER_BINARY_DIR) + "/clients/ladderctl";
 constexpr Millis kStart{15000}, kAnswer{5000};
 
-struct Result {
-  int code = -1;
-  std::string output;
-};
-Result shell(const std::string& command) {
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  Result r;
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, pipe)) r.output.append(buf, n);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
-  return r;
-}
 
 class Record : public ::testing::Test {
  protected:
@@ -193,6 +182,59 @@ TEST_F(Record, ReplayRepublishesTheRecordedStates) {
     EXPECT_EQ(s->blocks[i].x, recorded->x[i]) << "block " << i;
     EXPECT_EQ(s->blocks[i].theta, recorded->theta[i]) << "block " << i;
   }
+}
+
+// A recorded session replayed to a real ladder-view draws the same picture as the live server did at the same
+// sim time (pixel for pixel below the heading line, which names the sim id).
+TEST_F(Record, ReplayDrawsWhatTheLiveServerDrew) {
+  const std::string viewer = std::string(LADDER_BINARY_DIR) + "/clients/ladder-view";
+  start({"--record", log_});
+  accepted(cmd::tip());
+  run_until(1.2);
+  accepted(cmd::pause());
+  const auto paused = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  ASSERT_TRUE(paused.has_value());
+  char at[32];
+  std::snprintf(at, sizeof at, "%.17g", paused->sim_time);  // reads back as the same double
+  const std::string camera = " --size 400x600 --view 0.01,-0.2,1200 --at " + std::string(at);
+  const std::string live_png = (dir_ / "live.png").string(), replay_png = (dir_ / "replay.png").string();
+  const Result live = shell(viewer + " --domain " + std::to_string(domain_) + " --sim-id " + sim_id_ +
+                            " --timeout 30 --png " + live_png + camera);
+  ASSERT_EQ(live.code, 0) << live.output;
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+
+  // The viewer waits for the replay; the replay runs as fast as it can and ends on the paused state.
+  const std::string replay_id = sim_id_ + "-r";
+  const std::string view_cmd = viewer + " --domain " + std::to_string(domain_) + " --sim-id " + replay_id +
+                               " --timeout 30 --png " + replay_png + camera;
+  Process player({"/bin/sh", "-c",
+                  "sleep 1; exec " + kLadderctl + " replay " + log_ + " --speed 4 --as " + replay_id +
+                      " --domain " + std::to_string(domain_)},
+                 (dir_ / "replay.log").string());
+  const Result rep = shell(view_cmd);
+  ASSERT_EQ(rep.code, 0) << rep.output << player.log();
+
+  cairo_surface_t* a = cairo_image_surface_create_from_png(live_png.c_str());
+  cairo_surface_t* b = cairo_image_surface_create_from_png(replay_png.c_str());
+  ASSERT_EQ(cairo_surface_status(a), CAIRO_STATUS_SUCCESS);
+  ASSERT_EQ(cairo_surface_status(b), CAIRO_STATUS_SUCCESS);
+  ASSERT_EQ(cairo_image_surface_get_width(a), cairo_image_surface_get_width(b));
+  ASSERT_EQ(cairo_image_surface_get_height(a), cairo_image_surface_get_height(b));
+  const int w = cairo_image_surface_get_width(a), h = cairo_image_surface_get_height(a);
+  const int stride = cairo_image_surface_get_stride(a);
+  const unsigned char *pa = cairo_image_surface_get_data(a), *pb = cairo_image_surface_get_data(b);
+  int differing = 0, drawn = 0;
+  for (int y = 50; y < h; ++y)  // below the heading box
+    for (int x = 0; x < w; ++x) {
+      const auto* qa = pa + y * stride + 4 * x;
+      const auto* qb = pb + y * stride + 4 * x;
+      if (std::memcmp(qa, qb, 4) != 0) ++differing;
+      if (std::memcmp(qa, pa + 60 * stride, 4) != 0) ++drawn;  // not the background of row 60, column 0
+    }
+  cairo_surface_destroy(a);
+  cairo_surface_destroy(b);
+  EXPECT_EQ(differing, 0);
+  EXPECT_GT(drawn, 1000) << "the pictures show nothing, so their equality proves nothing";
 }
 
 // The logs are standard LCM event logs: liblcm's reader sees the same events, and lcm-logplayer plays them.
