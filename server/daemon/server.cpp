@@ -95,6 +95,17 @@ struct Shared {
   const transport::Waiter* waiter = nullptr;  // to wake the I/O thread
 };
 
+// The answer to command c: addressed to its client, with the outcome; the caller adds when it took effect.
+ladder_msg_CommandAck ack_for(const ladder_msg_Command& c, const Outcome& r) {
+  ladder_msg_CommandAck a{};
+  std::memcpy(a.sim_id, c.sim_id, sizeof a.sim_id);
+  std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
+  a.command_id = c.command_id;
+  a.accepted = r.accepted;
+  copy_text(a.reason, r.reason);
+  return a;
+}
+
 // Percentiles of a window of samples [us]; the window is cleared.
 struct Percentiles {
   double p50 = 0, p99 = 0, max = 0;
@@ -243,15 +254,11 @@ void Physics::take_commands() {
     const double t = session_.sim().time();
     const std::uint64_t step = session_.sim().steps();
     const Outcome r = session_.apply(c);
-    ladder_msg_CommandAck& a = acks[i];
-    std::memcpy(a.sim_id, c.sim_id, sizeof a.sim_id);
-    std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
-    a.command_id = c.command_id;
-    a.accepted = r.accepted;
-    copy_text(a.reason, r.reason);
+    const bool restarted = session_.generation() != scene_generation_;
+    ladder_msg_CommandAck& a = acks[i] = ack_for(c, r);
     // A command that restarted the scene took effect at the new scene's start.
-    a.sim_time = session_.generation() != scene_generation_ ? session_.sim().time() : t;
-    a.step = session_.generation() != scene_generation_ ? session_.sim().steps() : step;
+    a.sim_time = restarted ? session_.sim().time() : t;
+    a.step = restarted ? session_.sim().steps() : step;
     (r.accepted ? accepted_ : refused_)++;
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
@@ -259,10 +266,9 @@ void Physics::take_commands() {
       spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
     else
       spdlog::info("{} {} from {}: refused: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
-    if (session_.generation() != scene_generation_ ||
-        std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
-            std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
-      if (session_.generation() != scene_generation_) {
+    if (restarted || std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
+                         std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
+      if (restarted) {
         debt_ = 0;
         spdlog::info("scene '{}' started ({} blocks)", session_.sim().scene().name, session_.sim().ladder().blocks());
       }
@@ -463,12 +469,7 @@ class Io {
 };
 
 void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
-  ladder_msg_CommandAck a{};
-  std::memcpy(a.sim_id, c.sim_id, sizeof a.sim_id);
-  std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
-  a.command_id = c.command_id;
-  a.accepted = false;
-  copy_text(a.reason, reason);
+  ladder_msg_CommandAck a = ack_for(c, {false, reason});
   a.sim_time = -1;  // never reached the simulation
   ack_w_.write(a);
 }

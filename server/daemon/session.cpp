@@ -86,10 +86,10 @@ const char* to_string(ladder_msg_CommandKind kind) {
 }
 
 Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates)
-    : scenes_dir_(std::move(scenes_dir)), limits_(limits), rates_(rates) {
-  start(scene);
-  generation_ = 0;
-}
+    : sim_(std::make_unique<scene::Simulation>(scene)),
+      scenes_dir_(std::move(scenes_dir)),
+      limits_(limits),
+      rates_(rates) {}
 
 void Session::start(const scene::Scene& scene) {
   sim_ = std::make_unique<scene::Simulation>(scene);

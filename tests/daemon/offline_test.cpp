@@ -1,4 +1,6 @@
 // ladderd --offline as a user runs it: the real binary, real files, exit codes and error messages.
+#include "process.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -20,20 +22,9 @@ using nlohmann::json;
 const std::string kLadderd = std::string(LADDER_BINARY_DIR) + "/server/ladderd";
 const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes/";
 
-struct Result {
-  int code;
-  std::string output;  // stdout and stderr
-};
+using ladder::test::Result;
 
-Result ladderd(const std::string& args) {
-  const std::string cmd = kLadderd + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+Result ladderd(const std::string& args) { return ladder::test::shell(kLadderd + " " + args); }
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p);
