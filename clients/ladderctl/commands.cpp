@@ -328,7 +328,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   });
 
   auto* set = app.add_subcommand("set", "change a live setting, e.g. set damping.linear 0.5 (see status)");
-  set->add_option("KEY", v.key, "sim.dt, sim.integrator, sim.gravity, solver.*, damping.*, "
+  set->add_option("KEY", v.key, "sim.* (e.g. sim.accuracy fast), solver.*, damping.*, "
                                 "server.real_time_factor or server.publish_rate")->required();
   set->add_option("VALUE", v.value, "the new value, written as in a scene file")->required();
   set->callback([&] {

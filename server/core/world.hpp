@@ -30,18 +30,27 @@
 
 namespace ladder::core {
 
-enum class Integrator { Euler, SymplecticEuler, Rattle, RK4 };
+enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection };
 enum class SolverKind { Newton, NewtonLineSearch };
-
+// What keeps the state on the constraint manifold after a step, beyond what the integrator does itself:
+//  - none: nothing (explicit integrators drift off the hinges; SHAKE and projection keep positions exact, their
+//    velocities are consistent to O(h) only);
+//  - velocity: velocities projected onto G v = 0 (explicit integrators' positions still drift, slowly);
+//  - position: positions projected onto C(q) = 0, then velocities (the default; for SHAKE, RATTLE and projection,
+//    whose positions are exact already, the same as velocity).
+enum class Stabilization { None, Velocity, Position };
 const char* to_string(Integrator);
 const char* to_string(SolverKind);
+const char* to_string(Stabilization);
 // Parse a name as used in scene files; throws std::invalid_argument listing the valid names.
 Integrator integrator_from_string(const std::string&);
 SolverKind solver_from_string(const std::string&);
+Stabilization stabilization_from_string(const std::string&);
 
 struct Options {
   Integrator integrator = Integrator::SymplecticEuler;
-  SolverKind solver = SolverKind::Newton;
+  SolverKind solver = SolverKind::Newton;  // all but projection, whose solve is its own (step.cpp)
+  Stabilization stabilization = Stabilization::Position;
   double tolerance = 1e-12;   // hinge position error the constraint solve drives below [m]
   int max_iterations = 20;    // per nonlinear solve
   Vec2 gravity{0.0, -9.81};   // [m/s^2]
@@ -282,6 +291,10 @@ class World {
   void kick_drift(double h_kick, double h);
   void step_shake(double h, bool rattle);
   void step_explicit(double h, bool rk4);
+  void step_projection(double h);
+  double factor_current_forward();
+  void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, Mat2& d, Mat2& l, Mat2& u_prev) const;
+  bool solve_projection(double velocity_scale);
   void mark_state_changed() { ++state_version_; }
 
   Options options_;

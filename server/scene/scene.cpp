@@ -85,8 +85,15 @@ constexpr std::array kKeys{
     KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = kAnyNumber,
            .help = "initial rotation of the whole ladder about its top-left corner [rad]"},
     KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(1e-7, 0.1), .help = "time step [s]"},
-    KeyDef{.name = "sim.integrator", .kind = Kind::Choice, .choices = "euler|symplectic_euler|rattle|rk4",
+    KeyDef{.name = "sim.substeps", .kind = Kind::Integer, .range = between(1, 1000),
+           .help = "steps of sim.dt / sim.substeps taken per step of sim.dt (the server's tick)"},
+    KeyDef{.name = "sim.accuracy", .kind = Kind::Choice, .choices = "fast|balanced|accurate",
+           .help = "preset for sim.integrator, sim.substeps, sim.stabilization and solver.*; such a key given "
+                   "beside it, or by --set over a file's preset, wins (docs/tradeoff.md)"},
+    KeyDef{.name = "sim.integrator", .kind = Kind::Choice, .choices = "euler|symplectic_euler|rattle|rk4|projection",
            .help = "time integrator"},
+    KeyDef{.name = "sim.stabilization", .kind = Kind::Choice, .choices = "none|velocity|position",
+           .help = "projection back onto the hinges after a step"},
     KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
            .help = "hinge constraint solver"},
@@ -540,14 +547,74 @@ void read_ladder(const Reader& r, model::LadderSpec& l) {
   r.get("initial.tilt", l.tilt);
 }
 
+}  // namespace
+
+const std::vector<AccuracyPreset>& accuracy_presets() {
+  using core::Integrator, core::Stabilization, core::SolverKind;
+  static const std::vector<AccuracyPreset> presets{
+      {"fast", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-6, 20, 1,
+       "SHAKE (symplectic Euler) to a 1 um hinge tolerance, velocities projected"},
+      {"balanced", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1,
+       "SHAKE (symplectic Euler) to 1e-12 m, velocities projected: the default"},
+      {"accurate", Integrator::RK4, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 4,
+       "RK4 with 4 sub-steps per step, projected to 1e-12 m"},
+  };
+  return presets;
+}
+
+void apply_accuracy(std::string_view name, Scene& s) {
+  for (const AccuracyPreset& p : accuracy_presets()) {
+    if (p.name != name) continue;
+    s.options.integrator = p.integrator;
+    s.options.stabilization = p.stabilization;
+    s.options.solver = p.solver;
+    s.options.tolerance = p.tolerance;
+    s.options.max_iterations = p.max_iterations;
+    s.substeps = p.substeps;
+    s.accuracy = std::string(p.name);
+    return;
+  }
+  throw std::invalid_argument("unknown accuracy preset '" + std::string(name) + "' (expected fast, balanced or accurate)");
+}
+
+std::string accuracy_of(const Scene& s) {
+  const core::Options& o = s.options;
+  for (const AccuracyPreset& p : accuracy_presets())
+    if (o.integrator == p.integrator && o.stabilization == p.stabilization && o.solver == p.solver &&
+        o.tolerance == p.tolerance && o.max_iterations == p.max_iterations && s.substeps == p.substeps)
+      return std::string(p.name);
+  return "custom";
+}
+
+namespace {
+
 void read_options(const Reader& r, Scene& s) {
   core::Options& o = s.options;
   r.get("sim.dt", s.dt);
+  r.get("sim.substeps", s.substeps);
   r.get("sim.integrator", o.integrator, &core::integrator_from_string);
-  r.get("sim.gravity", o.gravity);
+  r.get("sim.stabilization", o.stabilization, &core::stabilization_from_string);
   r.get("solver.kind", o.solver, &core::solver_from_string);
   r.get("solver.tolerance", o.tolerance);
   r.get("solver.max_iterations", o.max_iterations);
+  if (r.find("sim.accuracy")) {
+    // The preset sets its knobs; a knob given in the same place (the file, or --set) or a later one (--set over a
+    // file's preset) wins over it, so `--set sim.accuracy=fast` overrides a scene file's integrator.
+    const Scene given = s;
+    std::string name;
+    r.get("sim.accuracy", name, std::array<std::string, 3>{"fast", "balanced", "accurate"});
+    apply_accuracy(name, s);
+    const bool preset_set = r.overridden("sim.accuracy");
+    const auto wins = [&](std::string_view key) { return r.find(key) && (!preset_set || r.overridden(key)); };
+    if (wins("sim.substeps")) s.substeps = given.substeps;
+    if (wins("sim.integrator")) o.integrator = given.options.integrator;
+    if (wins("sim.stabilization")) o.stabilization = given.options.stabilization;
+    if (wins("solver.kind")) o.solver = given.options.solver;
+    if (wins("solver.tolerance")) o.tolerance = given.options.tolerance;
+    if (wins("solver.max_iterations")) o.max_iterations = given.options.max_iterations;
+  }
+  s.accuracy = accuracy_of(s);
+  r.get("sim.gravity", o.gravity);
   r.get("damping.linear", o.linear_damping);
   r.get("damping.angular", o.angular_damping);
   r.get("damping.hinge", o.hinge_friction);
@@ -684,7 +751,7 @@ Scene remake_scene(const std::string& text, const std::string& source, const std
 
 bool is_live_key(std::string_view key) {
   const std::string_view table = table_of(key);
-  return find_key(key) && (key == "sim.dt" || key == "sim.integrator" || key == "sim.gravity" || table == "solver" ||
+  return find_key(key) && (table == "sim" || table == "solver" ||
                            table == "damping");
 }
 
@@ -696,8 +763,8 @@ Scene with_live_setting(const Scene& scene, const std::string& setting) {
     const std::string key = origins.begin()->first;
     if (!is_live_key(key))
       throw SceneError("--set " + setting + ": " + key +
-                       " cannot change while the ladder runs (live keys: sim.dt, sim.integrator, sim.gravity, "
-                       "solver.*, damping.*); set it in the scene and reset");
+                       " cannot change while the ladder runs (live keys: sim.*, solver.*, damping.*); set it in "
+                       "the scene and reset");
     read_options(Reader(root, scene.source, origins), s);
   } catch (const SceneError& e) {
     const std::string_view what = e.what();
@@ -713,7 +780,10 @@ std::string live_settings(const Scene& s) {
     out += std::string(key) + "=" + value + "\n";
   };
   line("sim.dt", format_number(s.dt));
+  line("sim.substeps", std::to_string(s.substeps));
+  line("sim.accuracy", s.accuracy);
   line("sim.integrator", core::to_string(o.integrator));
+  line("sim.stabilization", core::to_string(o.stabilization));
   line("sim.gravity", "[" + format_number(o.gravity.x()) + ", " + format_number(o.gravity.y()) + "]");
   line("solver.kind", core::to_string(o.solver));
   line("solver.tolerance", format_number(o.tolerance));

@@ -34,6 +34,8 @@ struct Scene {
   model::LadderSpec ladder;
   core::Options options;
   double dt = 0.001;                       // [s]
+  int substeps = 1;                        // steps of dt / substeps per step of dt
+  std::string accuracy = "balanced";       // the preset the settings equal (accuracy_of()), or "custom"
   std::vector<TimedCommand> timeline;      // sorted by t; entries with equal t keep their file order
   // What the scene was made from, so that a session log can make it again (parse_scene(text, source, overrides),
   // then drop the timeline if timeline_dropped).
@@ -59,7 +61,24 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
 Scene remake_scene(const std::string& text, const std::string& source, const std::vector<std::string>& overrides,
                    bool timeline_dropped);
 
-// The keys that can change while a simulation runs: sim.dt, sim.integrator, sim.gravity, solver.* and damping.*.
+// The accuracy presets (sim.accuracy): settings picked from the measured speed/accuracy front (docs/tradeoff.md).
+struct AccuracyPreset {
+  std::string_view name;
+  core::Integrator integrator;
+  core::Stabilization stabilization;
+  core::SolverKind solver;
+  double tolerance;
+  int max_iterations;
+  int substeps;
+  std::string_view summary;
+};
+const std::vector<AccuracyPreset>& accuracy_presets();
+// Sets the preset's knobs in `scene`; throws std::invalid_argument for an unknown name.
+void apply_accuracy(std::string_view name, Scene& scene);
+// The preset whose knobs the scene's settings equal, or "custom".
+std::string accuracy_of(const Scene& scene);
+
+// The keys that can change while a simulation runs: sim.*, solver.* and damping.*.
 bool is_live_key(std::string_view key);
 // A copy of `scene` with one live setting "key=value" applied, checked exactly as --set checks it. Throws
 // SceneError ("key=value: why") for a bad value, an unknown key, or a key that is not live (the ladder's shape

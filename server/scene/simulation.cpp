@@ -44,9 +44,12 @@ void Simulation::step() {
       refusals_.push_back({time(), c.where, e.what()});
     }
   }
-  ladder_.advance(dt_);
+  const int substeps = scene_.substeps;
+  for (int i = 0; i < substeps; ++i) {
+    ladder_.advance(dt_ / substeps);
+    max_hinge_error_ = std::max(max_hinge_error_, ladder_.world().last_step().residual);
+  }
   ++steps_;
-  max_hinge_error_ = std::max(max_hinge_error_, ladder_.world().last_step().residual);
 }
 
 }  // namespace ladder::scene

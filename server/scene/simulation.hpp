@@ -22,7 +22,8 @@ class Simulation {
  public:
   explicit Simulation(const Scene& scene);
 
-  // Advances one time step, first applying every timeline command due by the start of the step.
+  // Advances one time step of dt (in scene().substeps equal steps), first applying every timeline command due by
+  // the start of the step.
   void step();
   // Applies a command now. Throws std::invalid_argument with the reason when it cannot be done; then nothing changed.
   void apply(const TimedCommand& command);

@@ -509,16 +509,17 @@ std::vector<std::string> help_keys() {
 
 TEST(Help, OneLinePerKey) {
   const auto keys = help_keys();
-  EXPECT_EQ(keys.size(), 34u);
+  EXPECT_EQ(keys.size(), 37u);
   EXPECT_EQ(keys.front(), "scene.name");
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
   EXPECT_NE(help.find("(>= 1 and <= 1000000)"), std::string::npos);
-  EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4"), std::string::npos);
+  EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4|projection"), std::string::npos);
+  EXPECT_NE(help.find("fast|balanced|accurate"), std::string::npos);
 }
 
 TEST(Help, EveryIntegratorAndSolverItListsIsAccepted) {
-  for (const char* i : {"euler", "symplectic_euler", "rattle", "rk4"})
+  for (const char* i : {"euler", "symplectic_euler", "rattle", "rk4", "projection"})
     EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("sim.integrator=") + i})) << i;
   for (const char* k : {"newton", "newton_linesearch"})
     EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("solver.kind=") + k})) << k;
