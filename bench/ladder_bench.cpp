@@ -9,6 +9,8 @@
 //  - Ladder: the toy held at the top, hanging at rest, tipped at t = 0: the ripple, with Algorithm 1 and event
 //    location on (N <= 1000).
 //  - LadderNoLogic: the same ladder with Algorithm 1 off (what the flip/lock logic costs).
+//  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
+//    projection integrator on a hanging chain too stiff for SHAKE at 1 ms.
 // Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the largest hinge error after the run [m]
 // and the simulated time covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
@@ -22,7 +24,15 @@ namespace {
 
 using namespace ladder;
 
-std::unique_ptr<model::Ladder> chain(int n, bool gravity) {
+// The `fast` accuracy preset's engine settings (scene/scene.cpp, accuracy_presets()): SHAKE to a 1 um tolerance.
+core::Options fast(core::Options o) {
+  o.integrator = core::Integrator::SymplecticEuler;
+  o.stabilization = core::Stabilization::Position;
+  o.tolerance = 1e-6;
+  return o;
+}
+
+std::unique_ptr<model::Ladder> chain(int n, bool gravity, bool fast_preset = false) {
   model::LadderSpec spec;
   spec.blocks = n;
   spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
@@ -33,14 +43,14 @@ std::unique_ptr<model::Ladder> chain(int n, bool gravity) {
   spec.kick_omega = gravity ? 0.0 : 5.0;
   core::Options options;
   if (!gravity) options.gravity = core::Vec2::Zero();
-  return std::make_unique<model::Ladder>(spec, options);
+  return std::make_unique<model::Ladder>(spec, fast_preset ? fast(options) : options);
 }
 
-std::unique_ptr<model::Ladder> ladder(int n, bool logic) {
+std::unique_ptr<model::Ladder> ladder(int n, bool logic, bool fast_preset = false) {
   model::LadderSpec spec;
   spec.blocks = n;
   spec.logic = logic;
-  return std::make_unique<model::Ladder>(spec, core::Options{});
+  return std::make_unique<model::Ladder>(spec, fast_preset ? fast(core::Options{}) : core::Options{});
 }
 
 void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
@@ -57,6 +67,22 @@ void ChainZeroG(benchmark::State& state) { run(state, chain(static_cast<int>(sta
 void ChainHanging(benchmark::State& state) { run(state, chain(static_cast<int>(state.range(0)), true), false); }
 void Ladder(benchmark::State& state) { run(state, ladder(static_cast<int>(state.range(0)), true), true); }
 void LadderNoLogic(benchmark::State& state) { run(state, ladder(static_cast<int>(state.range(0)), false), true); }
+void ChainZeroGFast(benchmark::State& state) { run(state, chain(static_cast<int>(state.range(0)), false, true), false); }
+void ChainHangingFast(benchmark::State& state) {
+  run(state, chain(static_cast<int>(state.range(0)), true, true), false);
+}
+// A hanging chain too stiff for SHAKE at 1 ms (N = 10 000: its top link is a pendulum in 10 000 g), with the
+// projection integrator, which runs it (docs/tradeoff.md).
+void ChainHangingProjection(benchmark::State& state) {
+  auto l = chain(static_cast<int>(state.range(0)), true);
+  core::Options o = l->world().options();
+  o.integrator = core::Integrator::Projection;
+  o.stabilization = core::Stabilization::None;
+  o.tolerance = 1e-6;
+  l->set_options(o);
+  run(state, std::move(l), false);
+}
+void LadderFast(benchmark::State& state) { run(state, ladder(static_cast<int>(state.range(0)), true, true), true); }
 
 // A fixed number of steps per size (the same early motion at every size): 1.5 s of simulated time up to
 // N = 1000, 0.2 s at 10 000 and 0.03 s at 100 000.
@@ -66,6 +92,14 @@ BENCHMARK(ChainZeroG)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond
 BENCHMARK(ChainHanging)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(Ladder)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderNoLogic)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+// The `fast` preset (sim.accuracy = fast) on the same workloads, and the projection integrator on a hanging chain
+// of 10 000 blocks, where SHAKE needs dt <= 0.25 ms (docs/benchmarks.md).
+BENCHMARK(ChainZeroGFast)->Arg(10)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainZeroGFast)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainZeroGFast)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainHangingFast)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainHangingProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderFast)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
