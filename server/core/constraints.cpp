@@ -36,23 +36,27 @@ namespace {
 
 }  // namespace
 
-// Row k of K = G W G^T at the current state, its anchors stored in ua[k] and ub[k]. K is symmetric: L_k = U_{k-1}^T
-// (the same products, so the same bits as building it).
-[[gnu::always_inline]] inline void World::symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, Mat2& d,
-                                                        Mat2& l, Mat2& u_prev) const {
+// Row k of K = G W G^T at the current state for BlockTridiag::factor_forward_symmetric(), its anchors stored in
+// ua[k] and ub[k]: D_k = (w_a + w_b) I + i_a perp(u_a) perp(u_a)^T + i_b perp(u_b) perp(u_b)^T as {d00, d01, d11}
+// (perp(u) perp(u)^T = [uy^2, -ux uy; -ux uy, ux^2]) and U_{k-1} = -(w_s I + i_s perp(u_b,k-1) perp(u_a,k)^T).
+[[gnu::always_inline]] inline void World::symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub,
+                                                        double* d, Mat2& u_prev) const {
   const Row& r = rows_[k];
   const Body& A = bodies_[r.a];
   const Body& B = bodies_[r.b];
-  const Vec2 ua_k = state_[r.a].q * r.ra, ub_k = state_[r.b].q * r.rb;
-  ua[k] = ua_k;
-  ub[k] = ub_k;
-  d = diagonal_block(ua_k, ub_k, ua_k, ub_k, A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
+  const Vec2 pa = state_[r.a].q * r.ra, pb = state_[r.b].q * r.rb;
+  ua[k] = pa;
+  ub[k] = pb;
+  const double w = A.inv_mass + B.inv_mass, ia = A.inv_inertia, ib = B.inv_inertia;
+  d[0] = w + ia * pa.y() * pa.y() + ib * pb.y() * pb.y();
+  d[1] = -(ia * pa.x() * pa.y() + ib * pb.x() * pb.y());
+  d[2] = w + ia * pa.x() * pa.x() + ib * pb.x() * pb.x();
   if (r.link_prev) {
-    u_prev = coupling_block(ub[k - 1], ua_k, A.inv_mass, A.inv_inertia);
-    l = u_prev.transpose();
+    const Vec2& p = ub[k - 1];  // perp(p) perp(pa)^T = [py pay, -py pax; -px pay, px pax]
+    u_prev << -(A.inv_mass + ia * p.y() * pa.y()), ia * p.y() * pa.x(), ia * p.x() * pa.y(),
+        -(A.inv_mass + ia * p.x() * pa.x());
   } else {
     u_prev.setZero();
-    l.setZero();
   }
 }
 
@@ -320,14 +324,14 @@ double World::factor_current_forward() {
   ub_.resize(rows_.size());
   c_.resize(rows_.size());
   double worst = 0;
-  const auto row = [this, &worst](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
+  const auto row = [this, &worst](int k, double* d, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
     const Row& r = rows_[k];
-    symmetric_row(k, ua_, ub_, d, l, u_prev);
+    symmetric_row(k, ua_, ub_, d, u_prev);
     c_[k] = (state_[r.a].x + ua_[k]) - (state_[r.b].x + ub_[k]);
     worst = std::max(worst, c_[k].squaredNorm());
     rhs = -c_[k];
   };
-  stats_.regularised_pivots += system_.factor_forward(n, row, mu_);
+  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
   factor_version_ = state_version_;
   residual_ = std::sqrt(worst);
   residual_version_ = state_version_;
@@ -379,16 +383,16 @@ void World::project_velocities() {
   const int n = static_cast<int>(rows_.size());
   ua0_.resize(rows_.size());
   ub0_.resize(rows_.size());
-  const auto row = [this](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
+  const auto row = [this](int k, double* d, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
     const Row& r = rows_[k];
     const BodyState& a = state_[r.a];
     const BodyState& b = state_[r.b];
-    symmetric_row(k, ua0_, ub0_, d, l, u_prev);
+    symmetric_row(k, ua0_, ub0_, d, u_prev);
     const Vec2& ua = ua0_[k];
     const Vec2& ub = ub0_[k];
     rhs = -((a.v + a.w * perp(ua)) - (b.v + b.w * perp(ub)));
   };
-  stats_.regularised_pivots += system_.factor_forward(n, row, mu_);
+  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
   factor_version_ = anchors_version_ = state_version_;
   system_.backward(mu_, [this](int k) HOT_INLINE {
     const Row& r = rows_[k];

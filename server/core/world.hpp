@@ -293,7 +293,7 @@ class World {
   void step_explicit(double h, bool rk4);
   void step_projection(double h);
   double factor_current_forward();
-  void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, Mat2& d, Mat2& l, Mat2& u_prev) const;
+  void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;
   bool solve_projection(double velocity_scale);
   void mark_state_changed() { ++state_version_; }
 
