@@ -18,7 +18,7 @@
 // it stable for stiff long chains at steps where SHAKE's start-of-step directions fail, at the price of first-order
 // accuracy and numerical damping of fast modes. Each iteration is one fused pass (anchors, residual, build, factor,
 // forward substitution) and one back-substitution pass that corrects the bodies; one iteration usually suffices at
-// a loose tolerance, and no velocity projection follows (stabilization = none): the cheapest step the core has.
+// a loose tolerance. With stabilization = none no velocity projection follows: the cheapest step the core has.
 #include "core/world.hpp"
 
 #include <algorithm>
