@@ -62,6 +62,8 @@ int main(int argc, char** argv) {
   app.add_option("--commands", commands, "commands sent one after another for the ack latency");
   app.add_option("--domain", domain, "DDS domain id to use");
   app.add_option("--ladderd", ladderd, "the server binary");
+  std::vector<std::string> settings;
+  app.add_option("--set", settings, "KEY=VALUE passed to ladderd, e.g. sim.accuracy=fast (repeatable)");
   CLI11_PARSE(app, argc, argv);
 
   std::printf("| N | subscribers | ack p50 ms | ack p99 ms | late p50 us | late p99 us | late max us | missed ticks "
@@ -71,9 +73,10 @@ int main(int argc, char** argv) {
     for (int subs : subscribers) {
       const std::string sim_id = "bench-" + std::to_string(n) + "-" + std::to_string(subs);
       std::fprintf(stderr, "N = %d, %d subscriber(s): starting ladderd...\n", n, subs);
-      ladder::test::Process server({ladderd, "--domain", std::to_string(domain), "--sim-id", sim_id, "--set",
-                                    "ladder.blocks=" + std::to_string(n), "--log-level", "warn"},
-                                   "/tmp/" + sim_id + ".log");
+      std::vector<std::string> args{ladderd,  "--domain", std::to_string(domain), "--sim-id", sim_id, "--set",
+                                    "ladder.blocks=" + std::to_string(n), "--log-level", "warn"};
+      for (const std::string& s : settings) args.insert(args.end(), {"--set", s});
+      ladder::test::Process server(args, "/tmp/" + sim_id + ".log");
       Client control(domain, sim_id, "control");
       if (!control.wait_for_server(Millis(60000))) {
         std::fprintf(stderr, "no server; its log:\n%s\n", server.log().c_str());

@@ -159,6 +159,10 @@ class World {
   void step(double h);
   double time() const { return t_; }
   const StepStats& last_step() const { return stats_; }
+  // Changes whenever positions (or the time) change; velocities alone do not change it. With structure(), lets a
+  // caller reuse what it computed from the positions.
+  std::uint64_t state_version() const { return state_version_; }
+  std::uint64_t structure() const { return structure_; }
   Snapshot save() const;
   void restore(const Snapshot& s);
 

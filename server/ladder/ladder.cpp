@@ -146,6 +146,13 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     def.kinematic = i == 0 && spec.top == Top::Held;
     world_.add_part(def);
   }
+  unit_local_.resize(static_cast<size_t>(spec.blocks));
+  for (int i = 0; i < spec.blocks; ++i)
+    for (int pair = 0; pair < 2; ++pair) {
+      const int c = 2 * pair;
+      unit_local_[static_cast<size_t>(i)][static_cast<size_t>(pair)] =
+          (world_.particle_local(particle(i, c ^ 1)) - world_.particle_local(particle(i, c))).normalized();
+    }
   hinges_.resize(static_cast<size_t>(spec.blocks));
   hinges_[0] = {3, spec.top == Top::Free ? HingeStatus::Broken : HingeStatus::Hinged, 0};
   if (spec.top == Top::Held) {
@@ -173,6 +180,7 @@ void Ladder::set_options(const core::Options& options) {
   world_.set_options(options);
   // A flip-flop may happen once |s| is below this; the far corners are then within ~tolerance of each other.
   s_detect_ = 2 * std::max(options.tolerance, 1e-15) / spec_.length;
+  s_cache_valid_ = false;
 }
 
 bool Ladder::held() const { return spec_.top == Top::Held && world_.is_kinematic(0); }
@@ -187,8 +195,9 @@ double Ladder::hinge_measure(int k) const {
   if (k < 1 || k >= spec_.blocks)
     throw std::invalid_argument("hinge_measure: no hinge " + std::to_string(k) + " between two blocks");
   const int c = hinges_[k].corner;
-  const auto unit = [&](int block) {
-    return Vec2((world_.particle_local(particle(block, c ^ 1)) - world_.particle_local(particle(block, c))).normalized());
+  const auto unit = [&](int block) {  // from corner c to c ^ 1, in the block's frame
+    const Vec2& u = unit_local_[static_cast<size_t>(block)][static_cast<size_t>(c >> 1)];
+    return (c & 1) ? Vec2(-u) : u;
   };
   const Vec2 a = world_.part_rotation(k - 1) * unit(k - 1);
   const Vec2 b = world_.part_rotation(k) * unit(k);
@@ -205,16 +214,28 @@ bool Ladder::approaching(int k) const {
   return side_sign(k - 1, c) * a.dot(b) * (world_.part_omega(k) - world_.part_omega(k - 1)) > 0;
 }
 
-bool Ladder::any_violation(std::vector<double>& s) const {
+bool Ladder::any_violation(std::vector<double>& s, bool* clamped) const {
   s.assign(hinges_.size(), -1.0);
-  bool any = false;
+  bool any = false, inside = false;
   for (size_t k = 1; k < hinges_.size(); ++k) {
     if (hinges_[k].status != HingeStatus::Hinged) continue;
     s[k] = hinge_measure(static_cast<int>(k));
-    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) s[k] = s_detect_;  // inside, but not crossing
+    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) {  // inside, but not crossing
+      s[k] = s_detect_;
+      inside = true;
+    }
     any = any || s[k] > s_detect_;
   }
+  if (clamped) *clamped = inside;
   return any;
+}
+
+void Ladder::violations_at_start(std::vector<double>& s) {
+  if (s_cache_valid_ && s_cache_version_ == world_.state_version() && s_cache_structure_ == world_.structure()) {
+    s = s_cache_;
+    return;
+  }
+  any_violation(s);
 }
 
 void Ladder::emit(EventKind kind, int k, double energy, std::string detail) {
@@ -227,13 +248,17 @@ std::vector<Event> Ladder::take_events() { return std::exchange(events_, {}); }
 // than a micrometre, is undone and redone as two half steps, down to 1/64 of the step; if even that fails the
 // simulation stops with an error rather than go on from a broken state. Each episode of halving, and each of a
 // solve stopping short of the tolerance, is reported once.
-void Ladder::step_guarded(double h, int depth) {
-  const core::Snapshot start = world_.save();
+void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
+  core::Snapshot saved;
+  if (!start) {
+    saved = world_.save();
+    start = &saved;
+  }
   world_.step(h);
   const auto& st = world_.last_step();
   const bool failed = !world_.finite() || (!st.converged && !(st.residual < 1e-6));
   if (failed) {
-    world_.restore(start);
+    world_.restore(*start);
     if (depth >= 6)
       throw std::runtime_error("the hinge solve failed even with 1/64 of the time step at t = " +
                                format_number(world_.time()) + " s: the motion is too violent for sim.dt = " +
@@ -262,9 +287,16 @@ void Ladder::advance(double h) {
   std::vector<double> s0, s1;
   for (int guard = 0; remaining > 0; ++guard) {
     const core::Snapshot start = world_.save();
-    any_violation(s0);
-    step_guarded(remaining, 0);
-    if (!any_violation(s1)) break;
+    violations_at_start(s0);
+    step_guarded(remaining, 0, &start);
+    bool clamped = false;
+    if (!any_violation(s1, &clamped)) {
+      s_cache_.swap(s1);
+      s_cache_version_ = world_.state_version();
+      s_cache_structure_ = world_.structure();
+      s_cache_valid_ = !clamped;
+      break;
+    }
     if (guard >= 64) {  // a pathological pile-up of events in one step: keep going, but say so
       emit(EventKind::SolverWarning, 0, 0, "more than 64 restructuring events in one step");
       break;

@@ -20,6 +20,8 @@
 
 #include "core/world.hpp"
 
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -153,13 +155,15 @@ class Ladder {
  private:
   struct Hand;  // the held top block's prescribed motion
   void check_hinge(int k) const;
-  bool any_violation(std::vector<double>& s) const;
+  bool any_violation(std::vector<double>& s, bool* clamped = nullptr) const;
+  void violations_at_start(std::vector<double>& s);
   bool approaching(int k) const;
   double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
   void restructure(int k);
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
-  void step_guarded(double h, int depth);
+  // `start`: the world as it is now, when the caller has saved it already.
+  void step_guarded(double h, int depth, const core::Snapshot* start = nullptr);
   void apply_grips(double h);
 
   LadderSpec spec_;
@@ -172,6 +176,14 @@ class Ladder {
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
   std::vector<Grip> grips_;  // sorted by block
+  // Each block's lengthwise unit vector in its own frame, from corner 0 to 1 and from corner 2 to 3 (from c ^ 1 to c
+  // it is the negative, exactly): hinge_measure() every step without a square root per block.
+  std::vector<std::array<Vec2, 2>> unit_local_;
+  // The last step's closing any_violation(), reused as the next step's opening one while the positions and the
+  // structure are those it measured (and no hinge was inside its forbidden half, where velocities count too).
+  std::vector<double> s_cache_;
+  std::uint64_t s_cache_version_ = 0, s_cache_structure_ = 0;
+  bool s_cache_valid_ = false;
   Grip& grip_of(int block);
 };
 
