@@ -15,21 +15,24 @@
 // and the simulated time covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
 #include "ladder/ladder.hpp"
+#include "scene/scene.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <memory>
+#include <stdexcept>
 
 namespace {
 
 using namespace ladder;
 
-// The `fast` accuracy preset's engine settings (scene/scene.cpp, accuracy_presets()): SHAKE to a 1 um tolerance.
-core::Options fast(core::Options o) {
-  o.integrator = core::Integrator::SymplecticEuler;
-  o.stabilization = core::Stabilization::Position;
-  o.tolerance = 1e-6;
-  return o;
+// The `fast` accuracy preset's engine settings (scene::accuracy_presets()); it takes one step per step (substeps 1).
+core::Options fast(const core::Options& o) {
+  scene::Scene s;
+  s.options = o;
+  scene::apply_accuracy("fast", s);
+  if (s.substeps != 1) throw std::logic_error("the fast preset takes sub-steps; advance() would not");
+  return s.options;
 }
 
 std::unique_ptr<model::Ladder> chain(int n, bool gravity, bool fast_preset = false) {

@@ -264,6 +264,21 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
   return res <= options_.tolerance;
 }
 
+// A correction mu_ (applied along ua0/ub0) that left the residual `next` above the `res` it started from is cut back
+// by halves, at most six times (the correction is linear in mu, so applying -mu/2 undoes half of it): near heavily
+// loaded light bodies (the top of a long hanging chain) a full Newton step can overshoot and cycle. Returns the
+// residual it ends at.
+double World::cut_back(double res, double next, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                       double velocity_scale) {
+  for (int cut = 0; cut < 6 && next > res; ++cut) {
+    for (Vec2& m : mu_) m *= -0.5;
+    apply_correction(mu_, ua0, ub0, velocity_scale);
+    for (Vec2& m : mu_) m = -m;
+    next = residuals(c_);
+  }
+  return next;
+}
+
 // One iteration of the default solver from the residual c_ (res its largest), returning the new largest residual.
 // `forward` says whether mu_ still needs the forward substitution (forward_residual() did it for the first).
 double World::newton_iteration(bool forward, bool& exact, double res, const std::vector<Vec2>& ua0,
@@ -272,16 +287,8 @@ double World::newton_iteration(bool forward, bool& exact, double res, const std:
     factor_exact_forward(ua0, ub0);
   else if (forward)
     system_.forward(mu_, [this](int k) HOT_INLINE { return Vec2(-c_[k]); });
-  double next = correct_along_chain(exact ? newton_ : system_, ua0, ub0, velocity_scale);
-  // A step that makes things worse is cut back by halves (the correction is linear in mu, so applying -mu/2
-  // undoes half of it): near heavily loaded light bodies (the top of a long hanging chain) a full Newton
-  // step can overshoot and cycle.
-  for (int cut = 0; cut < 6 && next > res; ++cut) {
-    for (Vec2& m : mu_) m *= -0.5;
-    apply_correction(mu_, ua0, ub0, velocity_scale);
-    for (Vec2& m : mu_) m = -m;
-    next = residuals(c_);
-  }
+  const double next = cut_back(res, correct_along_chain(exact ? newton_ : system_, ua0, ub0, velocity_scale), ua0,
+                               ub0, velocity_scale);
   if (next > 0.25 * res) exact = true;  // the chord is converging slowly: switch to the exact Jacobian
   return next;
 }
@@ -340,8 +347,7 @@ double World::factor_current_forward() {
 }
 
 // Newton's method on C(q + W G(q)^T mu) = 0 re-linearised at every iterate q: its Jacobian at mu = 0 is K(q)
-// exactly, so it converges quadratically. A correction that makes the residual worse is cut back by halves as in
-// newton_iteration().
+// exactly, so it converges quadratically. A correction that makes the residual worse is cut back (cut_back()).
 bool World::solve_projection(double velocity_scale) {
   if (rows_.empty()) return true;
   // At a loose tolerance the unconstrained step often stays within it (half the steps of a free chain at 1 um and
@@ -360,14 +366,7 @@ bool World::solve_projection(double velocity_scale) {
     if (it >= options_.max_iterations || !(res < 1e3 * initial + 1e-9)) break;
     if (it > 0) factor_current_forward();
     ++stats_.iterations;
-    double next = correct_along_chain(system_, ua_, ub_, velocity_scale);
-    for (int cut = 0; cut < 6 && next > res; ++cut) {
-      for (Vec2& m : mu_) m *= -0.5;
-      apply_correction(mu_, ua_, ub_, velocity_scale);
-      for (Vec2& m : mu_) m = -m;
-      next = residuals(c_);
-    }
-    res = next;
+    res = cut_back(res, correct_along_chain(system_, ua_, ub_, velocity_scale), ua_, ub_, velocity_scale);
   }
   stats_.residual = std::max(stats_.residual, res);
   return false;

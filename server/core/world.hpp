@@ -273,6 +273,8 @@ class World {
   double correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                              double velocity_scale);
   void factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0);
+  double cut_back(double res, double next, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
+                  double velocity_scale);
   double newton_iteration(bool forward, bool& exact, double res, const std::vector<Vec2>& ua0,
                           const std::vector<Vec2>& ub0, double velocity_scale);
   double linesearch_iteration(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0, double velocity_scale);

@@ -552,12 +552,9 @@ void read_ladder(const Reader& r, model::LadderSpec& l) {
 const std::vector<AccuracyPreset>& accuracy_presets() {
   using core::Integrator, core::Stabilization, core::SolverKind;
   static const std::vector<AccuracyPreset> presets{
-      {"fast", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-6, 20, 1,
-       "SHAKE (symplectic Euler) to a 1 um hinge tolerance, velocities projected"},
-      {"balanced", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1,
-       "SHAKE (symplectic Euler) to 1e-12 m, velocities projected: the default"},
-      {"accurate", Integrator::RK4, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 4,
-       "RK4 with 4 sub-steps per step, projected to 1e-12 m"},
+      {"fast", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-6, 20, 1},
+      {"balanced", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1},
+      {"accurate", Integrator::RK4, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 4},
   };
   return presets;
 }
@@ -571,7 +568,6 @@ void apply_accuracy(std::string_view name, Scene& s) {
     s.options.tolerance = p.tolerance;
     s.options.max_iterations = p.max_iterations;
     s.substeps = p.substeps;
-    s.accuracy = std::string(p.name);
     return;
   }
   throw std::invalid_argument("unknown accuracy preset '" + std::string(name) + "' (expected fast, balanced or accurate)");
@@ -613,7 +609,6 @@ void read_options(const Reader& r, Scene& s) {
     if (wins("solver.tolerance")) o.tolerance = given.options.tolerance;
     if (wins("solver.max_iterations")) o.max_iterations = given.options.max_iterations;
   }
-  s.accuracy = accuracy_of(s);
   r.get("sim.gravity", o.gravity);
   r.get("damping.linear", o.linear_damping);
   r.get("damping.angular", o.angular_damping);
@@ -781,7 +776,7 @@ std::string live_settings(const Scene& s) {
   };
   line("sim.dt", format_number(s.dt));
   line("sim.substeps", std::to_string(s.substeps));
-  line("sim.accuracy", s.accuracy);
+  line("sim.accuracy", accuracy_of(s));
   line("sim.integrator", core::to_string(o.integrator));
   line("sim.stabilization", core::to_string(o.stabilization));
   line("sim.gravity", "[" + format_number(o.gravity.x()) + ", " + format_number(o.gravity.y()) + "]");

@@ -35,7 +35,6 @@ struct Scene {
   core::Options options;
   double dt = 0.001;                       // [s]
   int substeps = 1;                        // steps of dt / substeps per step of dt
-  std::string accuracy = "balanced";       // the preset the settings equal (accuracy_of()), or "custom"
   std::vector<TimedCommand> timeline;      // sorted by t; entries with equal t keep their file order
   // What the scene was made from, so that a session log can make it again (parse_scene(text, source, overrides),
   // then drop the timeline if timeline_dropped).
@@ -70,7 +69,6 @@ struct AccuracyPreset {
   double tolerance;
   int max_iterations;
   int substeps;
-  std::string_view summary;
 };
 const std::vector<AccuracyPreset>& accuracy_presets();
 // Sets the preset's knobs in `scene`; throws std::invalid_argument for an unknown name.

@@ -88,23 +88,23 @@ TEST(Presets, AccurateMeetsItsTargetOnTheFreeChain) {
 // A preset sets every knob it covers, over the scene file's own (classic.toml names its integrator); a knob given
 // beside it wins, and the settings are then custom.
 TEST(Presets, SetTheirKnobsAndGivenKeysWin) {
-  EXPECT_EQ(shipped("classic.toml").accuracy, "balanced");  // the defaults are the balanced preset
+  EXPECT_EQ(scene::accuracy_of(shipped("classic.toml")), "balanced");  // the defaults are the balanced preset
   const scene::Scene fast = shipped("classic.toml", {"sim.accuracy=fast"});
-  EXPECT_EQ(fast.accuracy, "fast");
+  EXPECT_EQ(scene::accuracy_of(fast), "fast");
   EXPECT_EQ(fast.options.integrator, core::Integrator::SymplecticEuler);
   EXPECT_EQ(fast.options.tolerance, 1e-6);  // the file says 1e-12: a preset given by --set wins over the file
   const scene::Scene accurate = shipped("classic.toml", {"sim.accuracy=accurate"});
   EXPECT_EQ(accurate.options.integrator, core::Integrator::RK4);
   EXPECT_EQ(accurate.substeps, 4);
   const scene::Scene custom = shipped("classic.toml", {"sim.accuracy=accurate", "solver.tolerance=1e-9"});
-  EXPECT_EQ(custom.accuracy, "custom");
+  EXPECT_EQ(scene::accuracy_of(custom), "custom");
   EXPECT_EQ(custom.options.integrator, core::Integrator::RK4);
   EXPECT_EQ(custom.options.tolerance, 1e-9);
   // In a file, a key beside the preset wins over it.
   const scene::Scene file = scene::parse_scene("[sim]\naccuracy = \"accurate\"\nsubsteps = 2\n", "<string>");
   EXPECT_EQ(file.options.integrator, core::Integrator::RK4);
   EXPECT_EQ(file.substeps, 2);
-  EXPECT_EQ(file.accuracy, "custom");
+  EXPECT_EQ(scene::accuracy_of(file), "custom");
   // Live: the preset replaces the running settings, and live_settings() shows it.
   const scene::Scene live = scene::with_live_setting(shipped("classic.toml"), "sim.accuracy=accurate");
   EXPECT_EQ(live.substeps, 4);
