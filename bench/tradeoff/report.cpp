@@ -24,6 +24,13 @@ std::ofstream open(const std::string& path) {
   return out;
 }
 
+// A CSV text field: quoted (knob names hold commas), inner quotes doubled (RFC 4180).
+std::string quoted(const std::string& text) {
+  std::string out = "\"";
+  for (char ch : text) out += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return out + "\"";
+}
+
 bool is_ladder(const CaseReport& c) { return c.reference.fine.deepest_hinge > 0; }
 
 // The knobs in the order they were run (the order of the legend).
@@ -46,16 +53,14 @@ void write_csv(const std::string& path, const std::vector<CaseReport>& reports) 
     std::vector<Result> rows{c.reference.coarse, c.reference.fine};
     rows.insert(rows.end(), c.results.begin(), c.results.end());
     for (const Result& r : rows) {
-      std::string failure = r.failure;
-      std::replace(failure.begin(), failure.end(), '"', '\'');
-      out << r.case_id << ',' << r.knob << ',' << r.label << ',' << r.integrator << ',' << fmt(r.dt, "%.9g") << ','
-          << r.substeps << ',' << fmt(r.tolerance, "%.3g") << ',' << r.solver << ',' << r.stabilization << ','
+      out << r.case_id << ',' << quoted(r.knob) << ',' << quoted(r.label) << ',' << r.integrator << ','
+          << fmt(r.dt, "%.9g") << ',' << r.substeps << ',' << fmt(r.tolerance, "%.3g") << ',' << r.solver << ',' << r.stabilization << ','
           << (r.ok ? 1 : 0) << ',' << fmt(r.wall_per_sim_second, "%.6g") << ','
           << fmt(r.block_steps_per_second, "%.6g") << ',' << fmt(r.angle_error_max, "%.6g") << ','
           << fmt(r.angle_error_rms, "%.6g") << ',' << fmt(r.hinge_error, "%.6g") << ','
           << fmt(r.energy_drift, "%.6g") << ',' << fmt(r.energy_error, "%.6g") << ','
           << fmt(r.arrival_error, "%.6g") << ',' << (r.flips_same ? 1 : 0) << ',' << (r.events_same ? 1 : 0) << ','
-          << (r.pareto ? 1 : 0) << ",\"" << failure << "\"\n";
+          << (r.pareto ? 1 : 0) << ',' << quoted(r.failure) << '\n';
     }
   }
 }

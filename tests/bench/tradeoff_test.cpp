@@ -46,6 +46,7 @@ class QuickStudy : public ::testing::Test {
     while (std::getline(in, line)) {
       std::map<std::string, std::string> row;
       const auto cells = split(line, ',');
+      widths_.push_back(cells.size());
       for (size_t i = 0; i < header_.size() && i < cells.size(); ++i) row[header_[i]] = cells[i];
       rows_.push_back(row);
     }
@@ -65,6 +66,7 @@ class QuickStudy : public ::testing::Test {
   static inline ladder::test::Result result_;
   static inline std::vector<std::string> header_;
   static inline std::vector<std::map<std::string, std::string>> rows_;
+  static inline std::vector<size_t> widths_;  // cells per row
 };
 
 TEST_F(QuickStudy, WritesEveryRunWithItsCostAndError) {
@@ -74,6 +76,7 @@ TEST_F(QuickStudy, WritesEveryRunWithItsCostAndError) {
   EXPECT_EQ(header_[0], "scene");
   // Two reference runs, then 5 integrators and the paper's solver at 3 steps each.
   ASSERT_EQ(rows_.size(), 2u + 6 * 3);
+  for (size_t w : widths_) EXPECT_EQ(w, header_.size());  // text with commas (knob names, failures) is quoted
   for (const auto& r : rows_) {
     EXPECT_EQ(r.at("ok"), "1") << r.at("knob") << " " << r.at("setting");
     EXPECT_GT(std::stod(r.at("wall_per_sim_second")), 0);
