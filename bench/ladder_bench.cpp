@@ -14,6 +14,7 @@
 // Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the largest hinge error after the run [m]
 // and the simulated time covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
+#include "core/chain3d.hpp"
 #include "ladder/ladder.hpp"
 #include "scene/scene.hpp"
 
@@ -103,6 +104,73 @@ BENCHMARK(ChainZeroGFast)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillise
 BENCHMARK(ChainHangingFast)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(ChainHangingProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderFast)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+// Model fidelity (docs/fidelity.md): the free chain of config/scenes/free-chain.toml (pinned at its top-left
+// corner, a straight column, block 1 kicked at 5 rad/s, no ladder logic) as the 2-D model and as the 3-D model of
+// core/chain3d.hpp (6 DOF per block, 5 equations per hinge), the same steps at the same settings (dt = 1 ms,
+// symplectic Euler / SHAKE to 1e-12 m). ...ZeroG: without gravity at N = 10 to 10 000 (the travelling wave of
+// ChainZeroG, from the straight start); ...Gravity: under gravity, the study's scene (N = 10 and 100).
+namespace {
+
+using namespace ladder;
+
+model::LadderSpec free_chain_spec(int n) {
+  model::LadderSpec spec;
+  spec.blocks = n;
+  spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
+  spec.top = model::Top::Pinned;
+  spec.start = model::Start::Straight;
+  spec.logic = false;
+  spec.kick_omega = 5.0;
+  return spec;
+}
+
+void FreeChain2D(benchmark::State& state, bool gravity) {
+  const int n = static_cast<int>(state.range(0));
+  core::Options options;
+  if (!gravity) options.gravity = core::Vec2::Zero();
+  model::Ladder l(free_chain_spec(n), options);
+  for (auto _ : state) l.advance(1e-3);
+  state.counters["block_steps/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * n, benchmark::Counter::kIsRate);
+  state.counters["max_hinge_error_m"] = l.world().max_hinge_error();
+  state.counters["sim_time_s"] = l.time();
+}
+
+void FreeChain3D(benchmark::State& state, bool gravity) {
+  const int n = static_cast<int>(state.range(0));
+  const model::LadderSpec s = free_chain_spec(n);
+  core::Chain3DSpec spec;
+  spec.blocks = n;
+  spec.length = s.length, spec.thickness = s.thickness, spec.mass = s.mass;
+  spec.kick_omega = s.kick_omega;
+  if (!gravity) spec.gravity.setZero();
+  core::Chain3D chain(spec);
+  long iterations = 0;
+  for (auto _ : state) {
+    chain.step(1e-3);
+    iterations += chain.last_iterations();
+  }
+  state.counters["block_steps/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * n, benchmark::Counter::kIsRate);
+  state.counters["max_hinge_error_m"] = chain.max_hinge_error();
+  state.counters["sim_time_s"] = chain.time();
+  state.counters["newton_its/step"] = static_cast<double>(iterations) / static_cast<double>(state.iterations());
+}
+
+void FreeChain2DZeroG(benchmark::State& state) { FreeChain2D(state, false); }
+void FreeChain3DZeroG(benchmark::State& state) { FreeChain3D(state, false); }
+void FreeChain2DGravity(benchmark::State& state) { FreeChain2D(state, true); }
+void FreeChain3DGravity(benchmark::State& state) { FreeChain3D(state, true); }
+
+BENCHMARK(FreeChain2DZeroG)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChain2DZeroG)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChain3DZeroG)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChain3DZeroG)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChain2DGravity)->Arg(10)->Arg(100)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChain3DGravity)->Arg(10)->Arg(100)->Iterations(1500)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
