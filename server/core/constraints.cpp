@@ -143,7 +143,7 @@ void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2
     tau_[r.a] += cross(ua0[k], mu[k]);
     f_[r.b] -= mu[k];
     tau_[r.b] -= cross(ub0[k], mu[k]);
-    if (velocity_scale != 0 && has_welds_) row_impulse_[k] += velocity_scale * mu[k];
+    if (velocity_scale != 0 && records_impulse(r)) row_impulse_[k] += velocity_scale * mu[k];
   }
   for (size_t b = 0; b < nb; ++b)
     if (!bodies_[b].kinematic) correct_body(static_cast<int>(b), f_[b], tau_[b], velocity_scale);
@@ -196,7 +196,7 @@ void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector
 // order from zero, as apply_correction() forms them, so the two give bit-identical states.
 double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                                   double velocity_scale) {
-  const bool impulses = velocity_scale != 0 && has_welds_;
+  const bool impulses = velocity_scale != 0;
   const Row* rows = rows_.data();
   const Vec2* mu = mu_.data();  // backward() writes mu_[k] before calling with k; nothing resizes it meanwhile
   Vec2* c = c_.data();
@@ -218,7 +218,7 @@ double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec
       correct_body(r.b, f, tau, velocity_scale);
     }
     if (r.corrects_a) correct_body(r.a, m, cross(ua0[k], m), velocity_scale);
-    if (impulses) row_impulse_[k] += velocity_scale * m;
+    if (impulses && records_impulse(r)) row_impulse_[k] += velocity_scale * m;
     if (!r.link_prev) check(k);
     if (r.shares_next) check(k + 1);
   });
@@ -394,6 +394,7 @@ void World::project_velocities() {
   };
   stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
   factor_version_ = anchors_version_ = state_version_;
+  mark_motion_changed();
   system_.backward(mu_, [this](int k) HOT_INLINE {
     const Row& r = rows_[k];
     const Vec2& m = mu_[k];
@@ -411,7 +412,7 @@ void World::project_velocities() {
       a.v += A.inv_mass * m;
       a.w += A.inv_inertia * cross(ua0_[k], m);
     }
-    if (has_welds_) row_impulse_[k] += m;
+    if (records_impulse(r)) row_impulse_[k] += m;
   });
 }
 
@@ -458,7 +459,7 @@ void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>
     ang[r.a] += A.inv_inertia * cross(ua_[k], mu_[k]);
     lin[r.b] -= B.inv_mass * mu_[k];
     ang[r.b] -= B.inv_inertia * cross(ub_[k], mu_[k]);
-    if (has_welds_) row_impulse_[k] += impulse_weight * mu_[k];
+    if (records_impulse(r)) row_impulse_[k] += impulse_weight * mu_[k];
   }
 }
 

@@ -33,6 +33,40 @@ double World::kinetic_energy() const {
   return e;
 }
 
+// One pass for the watchdog: the energies, and in the same pass finite() (see there; with a dynamic body's mass and
+// inertia positive a non-finite x, v or w already makes its energy non-finite, so only th and q are added).
+// Bodies in pairs, with a partial sum for each of the two, so that the pass is not bound by one chain of dependent
+// additions (a kinematic body counts as zero).
+Energy World::energy() const {
+  if (energy_version_ == motion_version_ && energy_structure_ == structure_) return energy_;
+  const double gx = options_.gravity.x(), gy = options_.gravity.y();
+  double k[2] = {0, 0}, p[2] = {0, 0}, zero = 0;
+  const auto add = [&](size_t b, int i) __attribute__((always_inline)) {
+    const BodyState& s = state_[b];
+    if (bodies_[b].kinematic) {
+      zero += 0.0 * (s.x.x() + s.x.y() + s.v.x() + s.v.y() + s.w);
+    } else {
+      const Body& body = bodies_[b];
+      k[i] += body.mass * (s.v.x() * s.v.x() + s.v.y() * s.v.y()) + body.inertia * s.w * s.w;
+      p[i] -= body.mass * (gx * s.x.x() + gy * s.x.y());
+    }
+    zero += 0.0 * (s.th + s.q.c + s.q.s);
+  };
+  const size_t n = bodies_.size();
+  size_t b = 0;
+  for (; b + 1 < n; b += 2) {
+    add(b, 0);
+    add(b + 1, 1);
+  }
+  if (b < n) add(b, 0);
+  energy_ = {0.5 * (k[0] + k[1]), p[0] + p[1]};
+  energy_.finite = std::isfinite(energy_.kinetic) && std::isfinite(energy_.potential) && zero == 0 &&
+                   std::isfinite(t_);
+  energy_version_ = motion_version_;
+  energy_structure_ = structure_;
+  return energy_;
+}
+
 double World::potential_energy() const {
   double e = 0;
   for (size_t b = 0; b < bodies_.size(); ++b)

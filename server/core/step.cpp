@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace ladder::core {
@@ -79,8 +80,7 @@ void World::drive_kinematic(double t) {
   const size_t nb = bodies_.size();
   kin_acc_.resize(nb);
   kin_alpha_.resize(nb);
-  for (size_t b = 0; b < nb; ++b) {
-    if (!bodies_[b].kinematic) continue;
+  for (const int b : kinematic_bodies_) {
     BodyState& s = state_[b];
     const Part& p = parts_[bodies_[b].anchor_part];
     if (!p.drive) {  // held still
@@ -203,9 +203,111 @@ void World::kick_drift(double h_kick, double h) {
   mark_state_changed();
 }
 
-void World::step(double h) {
+void World::step(double h, bool adaptive) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step: the time step must be a positive number");
   ensure_built();
+  if (options_.adaptive && adaptive)
+    step_adaptive(h);
+  else
+    step_fixed(h);
+}
+
+namespace {
+
+// Order of accuracy p of each integrator (global error O(h^p)), for the adaptive step's error estimate.
+int order(Integrator i) {
+  switch (i) {
+    case Integrator::Rattle: return 2;
+    case Integrator::RK4: return 4;
+    case Integrator::Euler:
+    case Integrator::SymplecticEuler:
+    case Integrator::Projection: return 1;
+  }
+  return 1;
+}
+
+}  // namespace
+
+// The largest displacement between the current state and `other` over the dynamic bodies [m]: the centre's plus
+// the turn times the radius of gyration (a typical point's displacement from the turn).
+double World::difference(const std::vector<BodyState>& other) const {
+  double worst = 0;
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    const Body& body = bodies_[b];
+    if (body.kinematic) continue;
+    const double d = (state_[b].x - other[b].x).norm() +
+                     std::sqrt(body.inertia * body.inv_mass) * std::abs(state_[b].th - other[b].th);
+    worst = std::max(worst, std::isnan(d) ? std::numeric_limits<double>::infinity() : d);
+  }
+  return worst;
+}
+
+// Error-controlled adaptive stepping by step doubling (Hairer, Norsett & Wanner, Solving ODEs I, II.4): each trial
+// sub-step s is taken once whole and once as two halves from the same start. Their difference over 2^p - 1 (p the
+// integrator's order) estimates the halves' local error (Richardson); a trial within the tolerance is accepted with
+// the halves' state, the more accurate of the two, and the next trial is scaled by 0.9 (tol / err)^(1 / (p + 1)),
+// at most 2x up and 5x down (10x after a failure). A non-finite trial or a failed hinge solve counts as an error
+// beyond any tolerance. Sub-steps never go below h / 1024: one that still misses the tolerance there is accepted
+// (error_estimate says so) unless it failed outright, which is left for the caller's watchdog to see.
+// A trial costs three steps; the trial size is remembered from call to call (and in snapshots).
+void World::step_adaptive(double h) {
+  const double t_end = t_ + h, h_min = h / 1024, tol = options_.error_tolerance;
+  const double p = order(options_.integrator), richardson = std::pow(2.0, p) - 1;
+  StepStats total;
+  total.substeps = 0;
+  double trial = adaptive_h_ > 0 ? std::min(adaptive_h_, h) : h;
+  for (;;) {
+    const double remaining = t_end - t_;
+    if (!(remaining > 1e-9 * h)) break;
+    double s = std::min(trial, remaining);
+    if (remaining - s < 0.01 * s) s = remaining;  // no sliver left at the end
+    const Snapshot start = save();
+    step_fixed(s);
+    const bool whole_ok = finite() && stats_.converged;
+    const int whole_iterations = stats_.iterations;
+    whole_ = state_;
+    restore(start);
+    step_fixed(0.5 * s);
+    StepStats halves = stats_;
+    const bool first_ok = finite() && stats_.converged;
+    if (first_ok) {
+      step_fixed(t_end - t_ <= 0.5 * s * (1 + 1e-12) ? t_end - t_ : 0.5 * s);
+      halves.iterations += stats_.iterations;
+      halves.residual = std::max(halves.residual, stats_.residual);
+      halves.regularised_pivots += stats_.regularised_pivots;
+      halves.converged = stats_.converged;
+      halves.work += stats_.work;
+    }
+    const bool halves_ok = first_ok && finite() && halves.converged;
+    const double err = whole_ok && halves_ok ? difference(whole_) / richardson : std::numeric_limits<double>::infinity();
+    total.iterations += whole_iterations + halves.iterations;
+    total.regularised_pivots += halves.regularised_pivots;
+    if (err <= tol || s <= h_min * (1 + 1e-9)) {
+      total.residual = std::max(total.residual, halves.residual);
+      total.converged = total.converged && halves.converged;
+      total.work += halves.work;
+      total.error_estimate = std::max(total.error_estimate, err);
+      ++total.substeps;
+      if (!halves_ok) {  // failed even at the smallest sub-step: left as it is for the caller's watchdog
+        adaptive_h_ = trial;
+        stats_ = total;
+        return;
+      }
+      const double grow = err > 0 ? std::min(2.0, 0.9 * std::pow(tol / err, 1 / (p + 1))) : 2.0;
+      trial = s < trial ? std::max(trial, s * grow) : s * grow;  // a step cut short by the end says nothing
+    } else {
+      restore(start);
+      ++total.rejected;
+      const double shrink = std::isfinite(err) ? std::max(0.2, 0.9 * std::pow(tol / err, 1 / (p + 1))) : 0.1;
+      trial = std::max(h_min, s * shrink);
+    }
+  }
+  t_ = t_end;
+  adaptive_h_ = trial;
+  stats_ = total;
+}
+
+void World::step_fixed(double h) {
   stats_ = {};
   last_h_ = h;
   // The row impulses and the start state serve weld_moment() only, which is void unless a weld existed during the
@@ -216,6 +318,8 @@ void World::step(double h) {
   }
   step_structure_ = structure_;
   step_forces_ = forces_;
+  const double t0 = t_;
+  start_work();
   switch (options_.integrator) {
     case Integrator::SymplecticEuler: step_shake(h, false); break;
     case Integrator::Rattle: step_shake(h, true); break;
@@ -223,7 +327,61 @@ void World::step(double h) {
     case Integrator::RK4: step_explicit(h, true); break;
     case Integrator::Projection: step_projection(h); break;
   }
+  stats_.work = finish_work(t0, h);
+  mark_motion_changed();  // whatever stage changed velocities last
   std::erase_if(forces_, [this](const AppliedForce& af) { return !(t_ < af.until); });
+}
+
+namespace {
+
+// Velocity of the point at offset d (world frame) from a body's centre of mass.
+Vec2 point_velocity(const BodyState& s, const Vec2& d) { return s.v + s.w * perp(d); }
+
+}  // namespace
+
+// Records what StepStats::work needs from the start of a step: the velocities of the kinematic anchors and of the
+// applied forces' points (a handful: the hold, the users' pushes and grips), and clears the kinematic rows' impulses.
+void World::start_work() {
+  kinematic_v0_.clear();
+  for (int k : kinematic_rows_) {
+    const Row& r = rows_[k];
+    const bool a_kinematic = bodies_[r.a].kinematic;
+    const BodyState& s = state_[a_kinematic ? r.a : r.b];
+    kinematic_v0_.push_back(point_velocity(s, s.q * (a_kinematic ? r.ra : r.rb)));
+    row_impulse_[k].setZero();
+  }
+  force_arm_.clear();
+  force_v0_.clear();
+  for (const AppliedForce& af : step_forces_) {
+    const Part& p = parts_[af.part];
+    const BodyState& s = state_[p.body];
+    force_arm_.push_back(s.q * (p.rel_x + p.rel_q * af.local));
+    force_v0_.push_back(point_velocity(s, force_arm_.back()));
+  }
+}
+
+// The work done on the dynamic bodies over the step just taken: each force times its point's mean velocity over the
+// step, h long, the point taken at its start-of-step lever arm as accumulate_forces() applies it (so that for
+// symplectic Euler a push's work is exactly the kinetic energy it adds); each kinematic row's impulse (on the dynamic side: +J on body a, -J on body b) times its kinematic
+// anchor's mean velocity (the hinge holds the two anchors' velocities equal).
+double World::finish_work(double t0, double h) const {
+  double work = 0;
+  for (size_t i = 0; i < step_forces_.size(); ++i) {
+    const AppliedForce& af = step_forces_[i];
+    const Part& p = parts_[af.part];
+    if (bodies_[p.body].kinematic) continue;
+    const Vec2 v1 = point_velocity(state_[p.body], force_arm_[i]);
+    work += af.over_step(t0, h).dot(0.5 * (force_v0_[i] + v1)) * h;
+  }
+  for (size_t i = 0; i < kinematic_rows_.size(); ++i) {
+    const Row& r = rows_[static_cast<size_t>(kinematic_rows_[i])];
+    const bool a_kinematic = bodies_[r.a].kinematic;
+    const BodyState& s = state_[a_kinematic ? r.a : r.b];
+    const Vec2 v1 = point_velocity(s, s.q * (a_kinematic ? r.ra : r.rb));
+    const Vec2 j = row_impulse_[static_cast<size_t>(kinematic_rows_[i])];
+    work += (a_kinematic ? -j : j).dot(0.5 * (kinematic_v0_[i] + v1));
+  }
+  return work;
 }
 
 void World::step_shake(double h, bool rattle) {
@@ -339,7 +497,7 @@ void World::step_explicit(double h, bool rk4) {
 
 Snapshot World::save() const {
   if (dirty_) throw std::logic_error("save: the model has unbuilt hinges; call finalize() first");
-  return {state_, forces_, t_, structure_};
+  return {state_, forces_, t_, structure_, adaptive_h_};
 }
 
 void World::restore(const Snapshot& s) {
@@ -347,6 +505,7 @@ void World::restore(const Snapshot& s) {
   state_ = s.bodies;
   forces_ = s.forces;
   t_ = s.t;
+  adaptive_h_ = s.adaptive_h;
   mark_state_changed();
 }
 

@@ -25,6 +25,7 @@ World::World(const Options& options) : options_(options) {}
 void World::set_options(const Options& options) {
   options_ = options;
   factor_version_ = 0;
+  mark_motion_changed();  // gravity may have changed: so has the potential energy
 }
 
 int World::add_part(const PartDef& def) {
@@ -61,6 +62,7 @@ int World::add_part(const PartDef& def) {
   body.inv_mass = def.kinematic ? 0 : 1 / mass;
   body.inv_inertia = def.kinematic ? 0 : 1 / part.inertia;
   body.anchor_part = index;
+  if (body.kinematic) kinematic_bodies_.push_back(part.body);
   bodies_.push_back(body);
   body_parts_.push_back({index});
   BodyState s;
@@ -314,7 +316,7 @@ void World::rebuild() {
       throw std::invalid_argument("a hinge between particles " + std::to_string(jt.pa) + " and " +
                                   std::to_string(jt.pb) + " would join a body to itself (a closed loop)");
     if (bodies[a].kinematic && bodies[b].kinematic) continue;  // nothing can move: no equation to solve
-    rows.push_back({a, b, Vec2::Zero(), Vec2::Zero(), pa, pb, static_cast<int>(j), false, false, false, false});
+    rows.push_back({a, b, Vec2::Zero(), Vec2::Zero(), pa, pb, static_cast<int>(j), false, false, false, false, false});
   }
   order_rows(bodies, rows);  // may throw: nothing is committed yet
   // Commit.
@@ -338,7 +340,14 @@ void World::rebuild() {
     r.shares_next = k + 1 < rows_.size() && rows_[k + 1].link_prev;
     r.corrects_a = !r.link_prev && !bodies_[r.a].kinematic;
     r.corrects_b = !bodies_[r.b].kinematic;
+    r.kinematic_side = bodies_[r.a].kinematic || bodies_[r.b].kinematic;
   }
+  kinematic_bodies_.clear();
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (bodies_[b].kinematic) kinematic_bodies_.push_back(static_cast<int>(b));
+  kinematic_rows_.clear();
+  for (size_t k = 0; k < rows_.size(); ++k)
+    if (rows_[k].kinematic_side) kinematic_rows_.push_back(static_cast<int>(k));
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
   ++structure_;

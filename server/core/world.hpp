@@ -57,6 +57,10 @@ struct Options {
   double linear_damping = 0;  // force -c m v on each part [1/s]
   double angular_damping = 0; // torque -c I w on each part [1/s]
   double hinge_friction = 0;  // viscous torque -c (w_b - w_a) at each hinge [N m s]
+  // Error-controlled adaptive step: step(h) covers h with as many sub-steps as keep each one's estimated local error
+  // (step doubling, World::step_adaptive()) below error_tolerance, a displacement [m]. Off: one step of h.
+  bool adaptive = false;
+  double error_tolerance = 1e-6;  // [m]
 };
 
 // Prescribed motion of a kinematic part (a held block): pose, velocity and acceleration at time t.
@@ -117,6 +121,7 @@ struct Snapshot {
   std::vector<AppliedForce> forces;  // a redone step must apply the same forces
   double t = 0;
   std::uint64_t structure = 0;
+  double adaptive_h = 0;  // the adaptive step's next trial sub-step: a redone step chooses the same sub-steps
 };
 
 // Per-step solver figures, for statistics and warnings.
@@ -125,6 +130,22 @@ struct StepStats {
   double residual = 0;         // largest hinge position error after the last solve [m]
   int regularised_pivots = 0;  // singular pivot blocks met (degenerate configuration)
   bool converged = true;       // the position solve reached the tolerance
+  // Work done on the dynamic bodies over the step [J] by the users' applied forces and by driven (kinematic) bodies
+  // through their hinges: with gravity's in the potential energy and damping's negative, what an exact step's
+  // energy may gain at most. The watchdog compares the step's energy gain with it.
+  double work = 0;
+  // The adaptive step's figures (Options::adaptive): sub-steps accepted and rejected, and the largest accepted
+  // sub-step's error estimate [m] (above the tolerance only where the smallest sub-step, 1/1024 of the step, was
+  // not enough).
+  int substeps = 1, rejected = 0;
+  double error_estimate = 0;
+};
+
+// Kinetic and gravitational potential energy of the dynamic bodies, from one pass that also checks the whole state.
+struct Energy {
+  double kinetic = 0, potential = 0;  // [J]
+  bool finite = true;                 // World::finite() at the same time
+  double total() const { return kinetic + potential; }
 };
 
 class World {
@@ -156,9 +177,12 @@ class World {
   JointKind joint_kind(int joint) const { return joints_[joint].kind; }
 
   // --- time stepping ---
-  void step(double h);
+  // One step of h; with Options::adaptive (unless `adaptive` is false) as many sub-steps as its error control needs.
+  void step(double h, bool adaptive = true);
   double time() const { return t_; }
   const StepStats& last_step() const { return stats_; }
+  // The adaptive step's next trial sub-step [s] (Options::adaptive), 0 before the first.
+  double adaptive_step() const { return adaptive_h_; }
   // Changes whenever positions (or the time) change; velocities alone do not change it. With structure(), lets a
   // caller reuse what it computed from the positions.
   std::uint64_t state_version() const { return state_version_; }
@@ -194,6 +218,7 @@ class World {
 
   double kinetic_energy() const;    // dynamic bodies only [J]
   double potential_energy() const;  // gravity, dynamic bodies only [J]
+  Energy energy() const;            // both, in one pass (none when nothing moved since the last call)
   Vec2 linear_momentum(const std::vector<int>& parts) const;
   double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
   double max_hinge_error() const;   // largest distance between two hinged particles [m]
@@ -234,6 +259,7 @@ class World {
     bool shares_next;  // rows[k + 1].link_prev: body b is the next row's body a
     bool corrects_a;   // body a is dynamic and in no earlier row: this row's sweep step corrects it
     bool corrects_b;   // body b is dynamic
+    bool kinematic_side;  // body a or b is kinematic: the row's impulses are recorded for the work its drive does
   };
 
   // topology.cpp
@@ -289,6 +315,9 @@ class World {
   void constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight, double h);
 
   // step.cpp
+  void step_fixed(double h);
+  void step_adaptive(double h);
+  double difference(const std::vector<BodyState>& other) const;
   void drive_kinematic(double t);
   void accumulate_forces(std::vector<Vec2>& f, std::vector<double>& tau, double h) const;
   void body_force(int b, Vec2& f, double& tau) const;
@@ -301,7 +330,11 @@ class World {
   double factor_current_forward();
   void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;
   bool solve_projection(double velocity_scale);
-  void mark_state_changed() { ++state_version_; }
+  void mark_state_changed() {
+    ++state_version_;
+    ++motion_version_;
+  }
+  void mark_motion_changed() { ++motion_version_; }  // velocities only
 
   Options options_;
   std::vector<Particle> particles_;
@@ -321,21 +354,38 @@ class World {
   BlockTridiag system_;
   BlockTridiag newton_;  // the exact (non-symmetric) Newton matrix, when the chord is not enough
   std::uint64_t state_version_ = 1, factor_version_ = 0;
+  // Changes with any position or velocity (state_version_ with positions only): energy() is kept for it, so that a
+  // step's energy at its start is the last one's at its end, one pass per step for the watchdog instead of two.
+  std::uint64_t motion_version_ = 1;
+  mutable std::uint64_t energy_version_ = 0, energy_structure_ = 0;
+  mutable Energy energy_;
   StepStats stats_;
 
-  // The last step's impulses, for weld_moment(): per row [N s] (applied at the step's anchors), per body the state
+  // The last step's impulses, for weld_moment() and for the work of driven bodies: per row [N s] (applied at the
+  // step's anchors; every row while a weld exists, else the rows with a kinematic body only), per body the state
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
   std::vector<BodyState> step_start_;
   std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
   double last_h_ = 0;
+  double adaptive_h_ = 0;  // the adaptive step's next trial sub-step [s]; 0 = the whole step
+  std::vector<BodyState> whole_;  // scratch: the adaptive step's trial taken whole
 
   // Accelerations of kinematic bodies from their drives (the explicit integrators need them).
   std::vector<Vec2> kin_acc_;
   std::vector<double> kin_alpha_;
 
   bool has_welds_ = false;
+  // The rows with a kinematic body (rebuild()), and for the step under way their kinematic anchors' velocities at
+  // its start; the applied forces' lever arms and points' velocities at its start. For StepStats::work.
+  std::vector<int> kinematic_rows_;
+  std::vector<int> kinematic_bodies_;  // (rebuild()) so that driving them is not a pass over every body
+  std::vector<Vec2> kinematic_v0_, force_arm_, force_v0_;
+  void start_work();
+  double finish_work(double t0, double h) const;
+  // True when row k's impulses are recorded this step (see row_impulse_).
+  bool records_impulse(const Row& r) const { return has_welds_ || r.kinematic_side; }
 
   // State versions at which ua0_/ub0_ and residual_ were computed: a step that starts where the last one ended
   // reuses them instead of another pass over the chain.

@@ -162,6 +162,8 @@ class Ladder {
   void restructure(int k);
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
+  void advance_by(double h);  // advance() without the grips' forces and the adaptive walk
+  std::string diverged(const core::Energy& e0, double h) const;
   // `start`: the world as it is now, when the caller has saved it already.
   void step_guarded(double h, int depth, const core::Snapshot* start = nullptr);
   void apply_grips(double h);
@@ -175,6 +177,8 @@ class Ladder {
   std::vector<Event> events_;
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
+  bool locating_ = false;  // in locate(): its trial steps are single steps (see advance())
+  double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
   std::vector<Grip> grips_;  // sorted by block
   // Each block's lengthwise unit vector in its own frame, from corner 0 to 1 and from corner 2 to 3 (from c ^ 1 to c
   // it is the negative, exactly): hinge_measure() every step without a square root per block.

@@ -94,6 +94,10 @@ constexpr std::array kKeys{
            .help = "time integrator"},
     KeyDef{.name = "sim.stabilization", .kind = Kind::Choice, .choices = "none|velocity|position",
            .help = "projection back onto the hinges after a step"},
+    KeyDef{.name = "sim.adaptive", .kind = Kind::Boolean,
+           .help = "cover each step with sub-steps chosen by error control (step doubling) to sim.error_tolerance"},
+    KeyDef{.name = "sim.error_tolerance", .kind = Kind::Number, .range = {0, 1e-2, true, false},
+           .help = "largest estimated error of an adaptive sub-step, a displacement [m]"},
     KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
            .help = "hinge constraint solver"},
@@ -575,6 +579,7 @@ void apply_accuracy(std::string_view name, Scene& s) {
 
 std::string accuracy_of(const Scene& s) {
   const core::Options& o = s.options;
+  if (o.adaptive) return "custom";  // no preset steps adaptively
   for (const AccuracyPreset& p : accuracy_presets())
     if (o.integrator == p.integrator && o.stabilization == p.stabilization && o.solver == p.solver &&
         o.tolerance == p.tolerance && o.max_iterations == p.max_iterations && s.substeps == p.substeps)
@@ -609,6 +614,8 @@ void read_options(const Reader& r, Scene& s) {
     if (wins("solver.tolerance")) o.tolerance = given.options.tolerance;
     if (wins("solver.max_iterations")) o.max_iterations = given.options.max_iterations;
   }
+  r.get("sim.adaptive", o.adaptive);
+  r.get("sim.error_tolerance", o.error_tolerance);
   r.get("sim.gravity", o.gravity);
   r.get("damping.linear", o.linear_damping);
   r.get("damping.angular", o.angular_damping);
@@ -779,6 +786,8 @@ std::string live_settings(const Scene& s) {
   line("sim.accuracy", accuracy_of(s));
   line("sim.integrator", core::to_string(o.integrator));
   line("sim.stabilization", core::to_string(o.stabilization));
+  line("sim.adaptive", o.adaptive ? "true" : "false");
+  line("sim.error_tolerance", format_number(o.error_tolerance));
   line("sim.gravity", "[" + format_number(o.gravity.x()) + ", " + format_number(o.gravity.y()) + "]");
   line("solver.kind", core::to_string(o.solver));
   line("solver.tolerance", format_number(o.tolerance));
