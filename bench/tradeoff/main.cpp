@@ -52,7 +52,8 @@ std::string machine() {
 
 int main(int argc, char** argv) {
   CLI::App app{"ladder-tradeoff: the speed/accuracy study. For each knob setting (integrator and time step, solver, "
-               "tolerance, stabilisation, sub-steps, accuracy presets) on the reference scenes, measures the cost "
+               "tolerance, stabilisation, sub-steps, the adaptive step, accuracy presets, and the 3-D model of the "
+               "free chains) on the reference scenes, measures the cost "
                "and the error against a converged reference, and writes tradeoff.csv, tradeoff.md and tradeoff.png "
                "to the output directory."};
   Options o;

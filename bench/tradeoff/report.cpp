@@ -135,6 +135,14 @@ const Colour kPalette[] = {{0.90, 0.10, 0.10}, {0.10, 0.35, 0.85}, {0.00, 0.60, 
                            {0.95, 0.55, 0.00}, {0.00, 0.65, 0.75}, {0.60, 0.40, 0.20}, {0.85, 0.30, 0.60},
                            {0.45, 0.45, 0.45}, {0.50, 0.65, 0.10}, {0.20, 0.20, 0.50}};
 
+// Knob k's line: its colour, and past the palette's end the same colours dashed, so no two knobs look alike.
+void line_style(cairo_t* cr, size_t k) {
+  const Colour col = kPalette[k % std::size(kPalette)];
+  cairo_set_source_rgb(cr, col.r, col.g, col.b);
+  const double dash[] = {7, 4};
+  cairo_set_dash(cr, dash, (k / std::size(kPalette)) % 2 ? 2 : 0, 0);
+}
+
 struct Panel {
   double x, y, w, h;           // the plotting area in the image [px]
   double lx0, lx1, ly0, ly1;   // log10 ranges
@@ -204,8 +212,7 @@ void draw_panel(cairo_t* cr, const CaseReport& c, const std::vector<std::string>
   cairo_rectangle(cr, p.x, p.y, p.w, p.h);
   cairo_clip(cr);
   for (size_t k = 0; k < all_knobs.size(); ++k) {
-    const Colour col = kPalette[k % std::size(kPalette)];
-    cairo_set_source_rgb(cr, col.r, col.g, col.b);
+    line_style(cr, k);
     cairo_set_line_width(cr, 1.6);
     bool first = true;
     const bool preset = all_knobs[k] == "preset";
@@ -217,6 +224,7 @@ void draw_panel(cairo_t* cr, const CaseReport& c, const std::vector<std::string>
       else cairo_line_to(cr, X, Y);
     }
     cairo_stroke(cr);
+    cairo_set_dash(cr, nullptr, 0, 0);
     for (const Result* r : pts) {
       if (r->knob != all_knobs[k]) continue;
       const double X = p.px(r->wall_per_sim_second), Y = p.py(floor_error(r->angle_error_max));
@@ -304,8 +312,10 @@ void write_plot(const std::string& path, const std::vector<CaseReport>& reports)
       text(cr, X + 26, Y + 4, "accuracy presets (sim.accuracy)", 12);
       continue;
     }
+    line_style(cr, k);
     cairo_set_line_width(cr, 2);
-    cairo_move_to(cr, X, Y), cairo_line_to(cr, X + 20, Y), cairo_stroke(cr);
+    cairo_move_to(cr, X, Y), cairo_line_to(cr, X + 24, Y), cairo_stroke(cr);
+    cairo_set_dash(cr, nullptr, 0, 0);
     cairo_set_source_rgb(cr, 0, 0, 0);
     const bool dt_line = all_knobs[k].find('(') == std::string::npos;
     text(cr, X + 26, Y + 4, all_knobs[k] + (dt_line ? ": dt varied" : ""), 12);

@@ -1,5 +1,6 @@
 #include "study.hpp"
 
+#include "core/chain3d.hpp"
 #include "scene/simulation.hpp"
 
 #include <algorithm>
@@ -59,6 +60,65 @@ void simulate(const scene::Scene& sc, double duration, Trace& trace) {
     }
   }
   trace.energy_end = l.energy();
+}
+
+// The 3-D model of a free-chain scene (core/chain3d.hpp): its blocks, kick and solver settings. Only what the 3-D
+// model reproduces is accepted; anything else is the study's bug.
+core::Chain3DSpec chain3d_spec(const scene::Scene& sc) {
+  const model::LadderSpec& l = sc.ladder;
+  const core::Options& o = sc.options;
+  if (l.top != model::Top::Pinned || l.start != model::Start::Straight || l.logic || !l.masses.empty() ||
+      l.tilt != 0 || o.integrator != core::Integrator::SymplecticEuler || o.linear_damping != 0 ||
+      o.angular_damping != 0 || o.hinge_friction != 0 || sc.substeps != 1 || !sc.timeline.empty())
+    throw std::logic_error("the 3-D model runs only the free chain (pinned, straight, no logic, no damping, "
+                           "symplectic_euler, one step per frame, no timeline)");
+  core::Chain3DSpec spec;
+  spec.blocks = l.blocks;
+  spec.length = l.length;
+  spec.thickness = l.thickness;
+  spec.mass = l.mass;
+  spec.hinge_inset = l.hinge_inset;
+  spec.kick_omega = l.kick_omega;
+  spec.tolerance = o.tolerance;
+  spec.max_iterations = o.max_iterations;
+  spec.gravity = core::Vec3(o.gravity.x(), o.gravity.y(), 0);
+  return spec;
+}
+
+// The 2-D runner's watchdog (Ladder::step_guarded, docs/model.md) for the 3-D model: a step that leaves a hinge
+// error above 1 um or a non-finite state is undone and redone as two half steps, down to 1/64 of the step.
+void step_guarded(core::Chain3D& chain, double h, int depth = 0) {
+  const core::Chain3D::Snapshot start = chain.save();
+  chain.step(h);
+  if (chain.last_step().residual <= 1e-6 && chain.finite()) return;
+  if (depth == 6)
+    throw std::runtime_error("the 3-D hinge solve failed even with 1/64 of the time step at t = " +
+                             number(start.t) + " s");
+  chain.restore(start);
+  step_guarded(chain, 0.5 * h, depth + 1);
+  step_guarded(chain, 0.5 * h, depth + 1);
+}
+
+// simulate() for the 3-D model: the same steps, watchdog and samples.
+void simulate_3d(const scene::Scene& sc, double duration, Trace& trace) {
+  core::Chain3D chain(chain3d_spec(sc));
+  const double dt = sc.dt;
+  const long per_sample = std::lround(kSample / dt);
+  if (per_sample < 1 || std::abs(static_cast<double>(per_sample) * dt - kSample) > 1e-9 * kSample)
+    throw std::invalid_argument("sim.dt = " + number(dt) + " s does not divide the 10 ms sampling interval");
+  const long frames = std::lround(duration / dt);
+  trace = {};
+  trace.energy_start = chain.kinetic_energy() + chain.potential_energy();
+  for (long f = 1; f <= frames; ++f) {
+    step_guarded(chain, dt);
+    if (f % per_sample == 0) {
+      std::vector<double> a(static_cast<size_t>(chain.blocks()));
+      for (int i = 0; i < chain.blocks(); ++i) a[static_cast<size_t>(i)] = chain.block_angle(i);
+      trace.angles.push_back(std::move(a));
+      trace.hinge_error = std::max(trace.hinge_error, chain.max_hinge_error());
+    }
+  }
+  trace.energy_end = chain.kinetic_energy() + chain.potential_energy();
 }
 
 double first_flip(const Trace& t, int hinge) {
@@ -131,6 +191,14 @@ std::vector<Setting> settings(const Case& c, const Options& o) {
     out.push_back({"symplectic_euler + newton_linesearch", "dt=" + ms(dt) + " ms",
                    {"sim.integrator=symplectic_euler", "solver.kind=newton_linesearch", "sim.dt=" + number(dt)}});
   if (o.quick) return out;
+  // --- model fidelity (docs/fidelity.md): the free chains as the 3-D model (6 DOF per block, 5 equations per
+  // hinge) at the steps the integrators are measured at, with the default integrator's method (SHAKE). The ladders
+  // are left out: their flip-flops and locks exist in the 2-D model only.
+  if (c.id == "free2" || c.id == "free100")
+    for (double dt : c.dts)
+      out.push_back({"fidelity", "3-D, dt=" + ms(dt) + " ms",
+                     {"sim.integrator=symplectic_euler", "sim.dt=" + number(dt)}, 3});
+  // --- end of model fidelity
   // The solver tolerance, at the scene's own step.
   for (const char* tol : {"1e-6", "1e-8", "1e-10", "1e-12"})
     out.push_back({"tolerance (symplectic_euler)", std::string("tol=") + tol, {std::string("solver.tolerance=") + tol}});
@@ -145,6 +213,13 @@ std::vector<Setting> settings(const Case& c, const Options& o) {
     for (int n : {1, 2, 4, 8})
       out.push_back({"substeps (symplectic_euler, 2 ms frame)", "substeps=" + std::to_string(n),
                      {"sim.dt=0.002", "sim.substeps=" + std::to_string(n)}});
+  // The error-controlled adaptive step in frames of 10 ms (5 ms for the long ladder, whose fixed steps fail above
+  // 1 ms), with the default integrator and with RK4: sub-steps chosen within each frame down to the tolerance.
+  for (const char* integrator : {"symplectic_euler", "rk4"})
+    for (const char* tol : {"1e-4", "1e-6", "1e-8"})
+      out.push_back({std::string("adaptive (") + integrator + ")", std::string("tol=") + tol,
+                     {std::string("sim.integrator=") + integrator, "sim.adaptive=true",
+                      std::string("sim.error_tolerance=") + tol, c.id == "long" ? "sim.dt=0.005" : "sim.dt=0.01"}});
   // The presets, at the scene's own step.
   for (const char* preset : {"fast", "balanced", "accurate"})
     out.push_back({"preset", preset, {std::string("sim.accuracy=") + preset}});
@@ -169,7 +244,10 @@ Result run(const Case& c, const Setting& s, const Options& o, const Reference* r
   for (int repeat = 0; repeat < 1000 && (repeat == 0 || spent < o.min_timing); ++repeat) {
     const auto t0 = std::chrono::steady_clock::now();
     try {
-      simulate(sc, c.duration, trace);
+      if (s.dimensions == 3)
+        simulate_3d(sc, c.duration, trace);
+      else
+        simulate(sc, c.duration, trace);
     } catch (const std::runtime_error& e) {  // the watchdog gave up: a result, not an error of the study
       r.ok = false;
       r.failure = e.what();

@@ -25,6 +25,7 @@ struct Setting {
   std::string knob;   // the plot line it belongs to: "rk4", "tolerance", "preset", ...
   std::string label;  // what differs along the line: "dt=0.5 ms", "tol=1e-9", "fast"
   std::vector<std::string> sets;
+  int dimensions = 2;  // 3: the scene's chain as the 3-D model (core/chain3d.hpp; free chains only)
 };
 
 // Samples of a run, every 10 ms of simulated time.
