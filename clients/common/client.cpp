@@ -238,8 +238,8 @@ std::optional<State> Client::wait_state(const std::function<bool(const State&)>&
   return std::nullopt;
 }
 
-std::optional<SceneInfo> Client::wait_scene_info(Millis timeout) {
-  if (wait(timeout, [&] { return scene_.has_value(); })) return scene_;
+std::optional<SceneInfo> Client::wait_scene_info(Millis timeout, const std::function<bool(const SceneInfo&)>& pred) {
+  if (wait(timeout, [&] { return scene_.has_value() && (!pred || pred(*scene_)); })) return scene_;
   return std::nullopt;
 }
 

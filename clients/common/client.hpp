@@ -98,7 +98,8 @@ class Client {
   // Waits until the latest State (already received or new) satisfies pred, and returns it. For "a newer state than
   // X", put that in pred (e.g. st.seq > x.seq).
   std::optional<State> wait_state(const std::function<bool(const State&)>& pred, Millis timeout);
-  std::optional<SceneInfo> wait_scene_info(Millis timeout);
+  // The latest SceneInfo once there is one (that satisfies `pred`, when given).
+  std::optional<SceneInfo> wait_scene_info(Millis timeout, const std::function<bool(const SceneInfo&)>& pred = {});
   std::optional<ladder_msg_Stats> wait_stats(const std::function<bool(const ladder_msg_Stats&)>& pred, Millis timeout);
   // Reads what has arrived, without waiting.
   void poll();

@@ -266,8 +266,10 @@ void Physics::take_commands() {
       spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
     else
       spdlog::info("{} {} from {}: refused: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
-    if (restarted || std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
-                         std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
+    // SceneInfo carries the live settings and the rates: published again when they change.
+    if (restarted || (r.accepted && c.kind == ladder_msg_SET_PARAM) ||
+        std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
+            std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
       if (restarted) {
         debt_ = 0;
         spdlog::info("scene '{}' started ({} blocks)", session_.sim().scene().name, session_.sim().ladder().blocks());

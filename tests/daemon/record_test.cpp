@@ -94,7 +94,7 @@ TEST_F(Record, ClassicSessionResimulatesBitForBit) {
   EXPECT_EQ(log.commands.size(), 8u);
   EXPECT_GT(log.states.size(), 100u);
   EXPECT_GT(log.checkpoints.size(), 2u);
-  EXPECT_EQ(log.scenes.size(), 2u);  // the start and the reset
+  EXPECT_EQ(log.scenes.size(), 3u);  // the start, the live setting and the reset
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
