@@ -379,6 +379,7 @@ bool World::solve_projection(double velocity_scale) {
 // impulses to each body once its multipliers are final (in row order per body, as a row-by-row loop would).
 void World::project_velocities() {
   ensure_built();
+  mark_motion_changed();
   if (rows_.empty()) return;
   const int n = static_cast<int>(rows_.size());
   ua0_.resize(rows_.size());
@@ -394,7 +395,6 @@ void World::project_velocities() {
   };
   stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
   factor_version_ = anchors_version_ = state_version_;
-  mark_motion_changed();
   system_.backward(mu_, [this](int k) HOT_INLINE {
     const Row& r = rows_[k];
     const Vec2& m = mu_[k];

@@ -247,8 +247,10 @@ double World::difference(const std::vector<BodyState>& other) const {
 // integrator's order) estimates the halves' local error (Richardson); a trial within the tolerance is accepted with
 // the halves' state, the more accurate of the two, and the next trial is scaled by 0.9 (tol / err)^(1 / (p + 1)),
 // at most 2x up and 5x down (10x after a failure). A non-finite trial or a failed hinge solve counts as an error
-// beyond any tolerance. Sub-steps never go below h / 1024: one that still misses the tolerance there is accepted
-// (error_estimate says so) unless it failed outright, which is left for the caller's watchdog to see.
+// beyond any tolerance (one that stopped short of the hinge tolerance but within the error tolerance does not).
+// Sub-steps never go below h / 1024: one that still misses the tolerance there is accepted (error_estimate and
+// converged say so, and the step goes on to its end) unless it made a non-finite state, which is left for the
+// caller's watchdog to undo.
 // A trial costs three steps; the trial size is remembered from call to call (and in snapshots).
 void World::step_adaptive(double h) {
   const double t_end = t_ + h, h_min = h / 1024, tol = options_.error_tolerance;
@@ -263,22 +265,24 @@ void World::step_adaptive(double h) {
     if (remaining - s < 0.01 * s) s = remaining;  // no sliver left at the end
     const Snapshot start = save();
     step_fixed(s);
-    const bool whole_ok = finite() && stats_.converged;
+    // A solve that stopped short of the hinge tolerance but within the error tolerance spoils no estimate.
+    const auto solved = [&] { return stats_.converged || stats_.residual <= tol; };
+    const bool whole_ok = finite() && solved();
     const int whole_iterations = stats_.iterations;
     whole_ = state_;
     restore(start);
     step_fixed(0.5 * s);
     StepStats halves = stats_;
-    const bool first_ok = finite() && stats_.converged;
+    const bool first_ok = finite() && solved();
     if (first_ok) {
       step_fixed(t_end - t_ <= 0.5 * s * (1 + 1e-12) ? t_end - t_ : 0.5 * s);
       halves.iterations += stats_.iterations;
       halves.residual = std::max(halves.residual, stats_.residual);
       halves.regularised_pivots += stats_.regularised_pivots;
-      halves.converged = stats_.converged;
+      halves.converged = halves.converged && stats_.converged;
       halves.work += stats_.work;
     }
-    const bool halves_ok = first_ok && finite() && halves.converged;
+    const bool halves_ok = first_ok && finite() && solved();
     const double err = whole_ok && halves_ok ? difference(whole_) / richardson : std::numeric_limits<double>::infinity();
     total.iterations += whole_iterations + halves.iterations;
     total.regularised_pivots += halves.regularised_pivots;
@@ -288,13 +292,15 @@ void World::step_adaptive(double h) {
       total.work += halves.work;
       total.error_estimate = std::max(total.error_estimate, err);
       ++total.substeps;
-      if (!halves_ok) {  // failed even at the smallest sub-step: left as it is for the caller's watchdog
+      if (!finite()) {  // even the smallest sub-step made garbage: left as it is for the caller's watchdog
         adaptive_h_ = trial;
         stats_ = total;
         return;
       }
-      const double grow = err > 0 ? std::min(2.0, 0.9 * std::pow(tol / err, 1 / (p + 1))) : 2.0;
-      trial = s < trial ? std::max(trial, s * grow) : s * grow;  // a step cut short by the end says nothing
+      // At the smallest sub-step the error may exceed the tolerance, even be infinite: the trial then stays there.
+      // A sub-step cut short by the end of the step says nothing about the trial size.
+      const double grow = err > 0 ? std::clamp(0.9 * std::pow(tol / err, 1 / (p + 1)), 0.2, 2.0) : 2.0;
+      trial = std::max(h_min, s < trial ? std::max(trial, s * grow) : s * grow);
     } else {
       restore(start);
       ++total.rejected;
@@ -519,6 +525,7 @@ double World::apply_impulse(int part, const Vec2& point, const Vec2& impulse) {
   BodyState& s = state_[b];
   s.v += bodies_[b].inv_mass * impulse;
   s.w += bodies_[b].inv_inertia * cross(point - s.x, impulse);
+  mark_motion_changed();
   project_velocities();
   return kinetic_energy() - before;
 }
