@@ -327,17 +327,35 @@ class Xvfb {
                                               "-nolisten", "tcp"},
                      dir + "/xvfb.log");
   }
+  // Killed with the test, Xvfb leaves its lock and socket behind: removed, so that the number can be used again.
+  ~Xvfb() {
+    process_.reset();
+    std::remove(socket_path(display_).c_str());
+    std::remove(lock_path(display_).c_str());
+  }
+  Xvfb(const Xvfb&) = delete;
+  Xvfb& operator=(const Xvfb&) = delete;
+  // The socket appears when the server listens (display_name() picked a number that had none).
   bool ready() const {
     struct stat st {};
-    return stat(("/tmp/.X11-unix/X" + display_.substr(1)).c_str(), &st) == 0;
+    return stat(socket_path(display_).c_str(), &st) == 0;
   }
   const std::string& display() const { return display_; }
-  // A display number from the pid, so that two tests at once do not meet.
+  // A free display number, searched from one given by the pid so that two tests at once do not meet. A number whose
+  // socket or lock is still there (left by a killed server) is passed over: with a stale socket ready() would say
+  // yes before the new server listened, and the viewer could not open its window (a flaky failure, seen).
   static std::string display_name() {
     char name[16];
+    for (int i = 0; i < 400; ++i) {
+      std::snprintf(name, sizeof name, ":%d", 100 + (getpid() + i) % 400);
+      struct stat st {};
+      if (stat(socket_path(name).c_str(), &st) != 0 && stat(lock_path(name).c_str(), &st) != 0) return name;
+    }
     std::snprintf(name, sizeof name, ":%d", 100 + getpid() % 400);
     return name;
   }
+  static std::string socket_path(const std::string& display) { return "/tmp/.X11-unix/X" + display.substr(1); }
+  static std::string lock_path(const std::string& display) { return "/tmp/.X" + display.substr(1) + "-lock"; }
   Image screen() const { return read_xwd(dir_ + "/Xvfb_screen0"); }
   std::string log() const { return process_->log(); }
 
