@@ -258,11 +258,22 @@ void World::step_adaptive(double h) {
   StepStats total;
   total.substeps = 0;
   double trial = adaptive_h_ > 0 ? std::min(adaptive_h_, h) : h;
-  for (;;) {
+  for (int trials = 0;; ++trials) {
     const double remaining = t_end - t_;
     if (!(remaining > 1e-9 * h)) break;
     double s = std::min(trial, remaining);
     if (remaining - s < 0.01 * s) s = remaining;  // no sliver left at the end
+    // Half a sub-step below the resolution of the clock (a tiny step late in a long run) would never get there, and
+    // neither would a run of trials with no end: the rest is then taken as one plain step.
+    if (!(t_ + 0.5 * s > t_) || trials >= 4096) {
+      step_fixed(remaining);
+      total.iterations += stats_.iterations;
+      total.residual = std::max(total.residual, stats_.residual);
+      total.converged = total.converged && stats_.converged;
+      total.work += stats_.work;
+      ++total.substeps;
+      break;
+    }
     const Snapshot start = save();
     step_fixed(s);
     // A solve that stopped short of the hinge tolerance but within the error tolerance spoils no estimate.

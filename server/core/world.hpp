@@ -58,7 +58,8 @@ struct Options {
   double angular_damping = 0; // torque -c I w on each part [1/s]
   double hinge_friction = 0;  // viscous torque -c (w_b - w_a) at each hinge [N m s]
   // Error-controlled adaptive step: step(h) covers h with as many sub-steps as keep each one's estimated local error
-  // (step doubling, World::step_adaptive()) below error_tolerance, a displacement [m]. Off: one step of h.
+  // (step doubling, World::step_adaptive()) below error_tolerance, a displacement of positions and angles [m]
+  // (velocities are not measured). Off: one step of h.
   bool adaptive = false;
   double error_tolerance = 1e-6;  // [m]
 };
@@ -218,7 +219,7 @@ class World {
 
   double kinetic_energy() const;    // dynamic bodies only [J]
   double potential_energy() const;  // gravity, dynamic bodies only [J]
-  Energy energy() const;            // both, in one pass (none when nothing moved since the last call)
+  Energy energy() const;            // both, in one pass (no pass when nothing moved since the last call)
   Vec2 linear_momentum(const std::vector<int>& parts) const;
   double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
   double max_hinge_error() const;   // largest distance between two hinged particles [m]
@@ -248,7 +249,7 @@ class World {
     int anchor_part = -1;  // the part whose frame is the body frame; a driven part if the body is kinematic
   };
   // One hinge in the solver's order: body a, body b, anchors in the body frames. Rows k-1 and k share body
-  // rows[k].a == rows[k-1].b exactly when link_prev is set. The last three flags are derived from the others (in
+  // rows[k].a == rows[k-1].b exactly when link_prev is set. The last four flags are derived from the others (in
   // rebuild()) so that the sweeps test one byte instead of loading the next row and both bodies: 64 bytes in all.
   struct Row {
     int a, b;

@@ -226,6 +226,7 @@ std::uint64_t Session::state_hash() const {
   const core::Snapshot snap = l.world().save();
   Fnv f;
   f.value(snap.t);
+  f.value(snap.adaptive_h);  // shapes the adaptive step's next sub-steps
   for (const core::BodyState& b : snap.bodies) {
     f.value(b.x.x()), f.value(b.x.y()), f.value(b.v.x()), f.value(b.v.y());
     f.value(b.q.c), f.value(b.q.s), f.value(b.th), f.value(b.w);

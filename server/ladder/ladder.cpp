@@ -300,8 +300,9 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
 
 // With the adaptive step on, the step is walked in the sub-steps the engine's error control suggests, each one
 // checked by Algorithm 1 as a step of its own: a hinge crossing is located within a sub-step, not within h. The
-// location's trial steps, each a fraction of a sub-step the error control accepted, are single steps: with error
-// control of their own, dozens of trials each cut into up to 1024 sub-steps made a violent frame cost minutes.
+// location's trial steps are single steps, each a fraction of the piece the error control just covered (usually in
+// one sub-step, sometimes a few): with error control of their own, dozens of trials each cut into up to 1024
+// sub-steps made a violent frame cost minutes.
 void Ladder::advance(double h) {
   apply_grips(h);
   if (!world_.options().adaptive) {

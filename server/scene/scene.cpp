@@ -96,7 +96,7 @@ constexpr std::array kKeys{
            .help = "projection back onto the hinges after a step"},
     KeyDef{.name = "sim.adaptive", .kind = Kind::Boolean,
            .help = "cover each step with sub-steps chosen by error control (step doubling) to sim.error_tolerance"},
-    KeyDef{.name = "sim.error_tolerance", .kind = Kind::Number, .range = {0, 1e-2, true, false},
+    KeyDef{.name = "sim.error_tolerance", .kind = Kind::Number, .range = between(1e-12, 1e-2),
            .help = "largest estimated error of an adaptive sub-step, a displacement [m]"},
     KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",

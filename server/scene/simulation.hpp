@@ -38,7 +38,8 @@ class Simulation {
   const model::Ladder& ladder() const { return ladder_; }
   std::vector<model::Event> take_events() { return ladder_.take_events(); }
   std::vector<Refusal> take_refusals() { return std::exchange(refusals_, {}); }
-  // Largest hinge position error at the end of any step so far [m] (the solver's own measure, free to keep).
+  // Largest hinge position error at the end of any step (of dt / substeps) so far [m] (the solver's own measure, free
+  // to keep; the adaptive step's sub-steps inside a step are not looked at one by one).
   double max_hinge_error() const { return max_hinge_error_; }
 
  private:

@@ -425,6 +425,17 @@ TEST(World, AdaptiveStepReachesTheEndEvenWhenSolvesStopShort) {
     EXPECT_TRUE(world.finite());
     EXPECT_GE(world.last_step().substeps, 1);
   }
+  // A tolerance nothing meets and a step of 1e-11 s at t = 1000 s, where half of the smallest sub-step is below the
+  // clock's resolution: the step still ends (it used to loop for ever), in one plain step.
+  Options strict = world.options();
+  strict.error_tolerance = 1e-300;
+  world.set_options(strict);
+  Snapshot late = world.save();
+  late.t = 1000;
+  world.restore(late);
+  world.step(1e-11);
+  EXPECT_EQ(world.time(), 1000 + 1e-11);
+  EXPECT_TRUE(world.finite());
 }
 
 // Same model, same steps: the same bits (floating-point contraction is off in the build).
