@@ -31,6 +31,11 @@ struct SessionLog {
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
 };
 
+// A command as the log records it (its own fields; where and when it was applied, and its answer, are the
+// recorder's to fill in), and back. One pair, so that a field added to the command is added to both.
+ladderlcm::command_t command_record(const ladder_msg_Command& c);
+ladder_msg_Command command_of(const ladderlcm::command_t& m);
+
 // Reads a whole log. Throws std::runtime_error naming the file and the problem (not a log, an undecodable event,
 // no scene record); a damaged or cut-off end is not an error: reading stops there and `damage` says where.
 SessionLog read_session_log(const std::string& path);

@@ -1,6 +1,7 @@
 #include "daemon/server.hpp"
 
 #include "daemon/handoff.hpp"
+#include "daemon/resimulate.hpp"
 #include "ladderlcm/checkpoint_t.hpp"
 #include "ladderlcm/command_t.hpp"
 #include "ladderlcm/event_t.hpp"
@@ -596,23 +597,11 @@ void Io::record_outbox() {
     log_->write(transport::kSceneChannel, now, m, false);
   }
   for (const CommandOut& c : out_.commands) {
-    const ladder_msg_Command& k = c.command;
-    ladderlcm::command_t m;
+    ladderlcm::command_t m = command_record(c.command);
     m.utime = now;
     m.generation = static_cast<std::int32_t>(c.generation);
     m.step = static_cast<std::int64_t>(c.step);
     m.command_seq = static_cast<std::int64_t>(c.seq);
-    m.client_id = text_of(k.client_id);
-    m.command_id = static_cast<std::int64_t>(k.command_id);
-    m.kind = static_cast<std::int32_t>(k.kind);
-    m.block = k.block;
-    m.hinge = k.hinge;
-    m.count = static_cast<std::int32_t>(k.count);
-    m.has_point = k.has_point;
-    m.has_target = k.has_target;
-    m.has_angle = k.has_angle;
-    m.a = k.a, m.b = k.b, m.c = k.c, m.d = k.d, m.e = k.e, m.f = k.f;
-    m.text = text_of(k.text);
     m.accepted = c.accepted;
     m.reason = c.reason;
     log_->write(transport::kCommandChannel, now, m, false);
