@@ -36,13 +36,23 @@ core::Options fast(const core::Options& o) {
   return s.options;
 }
 
-std::unique_ptr<model::Ladder> chain(int n, bool gravity, bool fast_preset = false) {
+// The comparison chain of config/scenes/free-chain.toml: pinned at its top-left corner, a straight column, block 1
+// kicked at 5 rad/s, no ladder logic.
+model::LadderSpec free_chain_spec(int n) {
   model::LadderSpec spec;
   spec.blocks = n;
   spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
   spec.top = model::Top::Pinned;
-  spec.start = model::Start::Hanging;
+  spec.start = model::Start::Straight;
   spec.logic = false;
+  spec.kick_omega = 5.0;
+  return spec;
+}
+
+// The same chain from the hanging start: kicked in zero gravity, or tilted 0.1 rad and released under gravity.
+std::unique_ptr<model::Ladder> chain(int n, bool gravity, bool fast_preset = false) {
+  model::LadderSpec spec = free_chain_spec(n);
+  spec.start = model::Start::Hanging;
   spec.tilt = gravity ? 0.1 : 0.0;
   spec.kick_omega = gravity ? 0.0 : 5.0;
   core::Options options;
@@ -115,17 +125,6 @@ BENCHMARK(LadderFast)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benc
 namespace {
 
 using namespace ladder;
-
-model::LadderSpec free_chain_spec(int n) {
-  model::LadderSpec spec;
-  spec.blocks = n;
-  spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
-  spec.top = model::Top::Pinned;
-  spec.start = model::Start::Straight;
-  spec.logic = false;
-  spec.kick_omega = 5.0;
-  return spec;
-}
 
 void FreeChain2D(benchmark::State& state, bool gravity) {
   const int n = static_cast<int>(state.range(0));

@@ -261,16 +261,12 @@ void World::step_adaptive(double h) {
   for (int trials = 0;; ++trials) {
     const double remaining = t_end - t_;
     if (!(remaining > 1e-9 * h)) break;
-    double s = std::min(trial, remaining);
-    if (remaining - s < 0.01 * s) s = remaining;  // no sliver left at the end
+    const double s = next_piece(trial, remaining);
     // Half a sub-step below the resolution of the clock (a tiny step late in a long run) would never get there, and
     // neither would a run of trials with no end: the rest is then taken as one plain step.
     if (!(t_ + 0.5 * s > t_) || trials >= 4096) {
       step_fixed(remaining);
-      total.iterations += stats_.iterations;
-      total.residual = std::max(total.residual, stats_.residual);
-      total.converged = total.converged && stats_.converged;
-      total.work += stats_.work;
+      total.add(stats_);
       ++total.substeps;
       break;
     }
@@ -287,20 +283,13 @@ void World::step_adaptive(double h) {
     const bool first_ok = finite() && solved();
     if (first_ok) {
       step_fixed(t_end - t_ <= 0.5 * s * (1 + 1e-12) ? t_end - t_ : 0.5 * s);
-      halves.iterations += stats_.iterations;
-      halves.residual = std::max(halves.residual, stats_.residual);
-      halves.regularised_pivots += stats_.regularised_pivots;
-      halves.converged = halves.converged && stats_.converged;
-      halves.work += stats_.work;
+      halves.add(stats_);
     }
     const bool halves_ok = first_ok && finite() && solved();
     const double err = whole_ok && halves_ok ? difference(whole_) / richardson : std::numeric_limits<double>::infinity();
-    total.iterations += whole_iterations + halves.iterations;
-    total.regularised_pivots += halves.regularised_pivots;
+    total.iterations += whole_iterations;  // every trial's solves count; only an accepted one's state does
     if (err <= tol || s <= h_min * (1 + 1e-9)) {
-      total.residual = std::max(total.residual, halves.residual);
-      total.converged = total.converged && halves.converged;
-      total.work += halves.work;
+      total.add(halves);
       total.error_estimate = std::max(total.error_estimate, err);
       ++total.substeps;
       if (!finite()) {  // even the smallest sub-step made garbage: left as it is for the caller's watchdog
@@ -314,6 +303,8 @@ void World::step_adaptive(double h) {
       trial = std::max(h_min, s < trial ? std::max(trial, s * grow) : s * grow);
     } else {
       restore(start);
+      total.iterations += halves.iterations;
+      total.regularised_pivots += halves.regularised_pivots;
       ++total.rejected;
       const double shrink = std::isfinite(err) ? std::max(0.2, 0.9 * std::pow(tol / err, 1 / (p + 1))) : 0.1;
       trial = std::max(h_min, s * shrink);

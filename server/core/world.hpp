@@ -140,7 +140,24 @@ struct StepStats {
   // not enough).
   int substeps = 1, rejected = 0;
   double error_estimate = 0;
+
+  // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
+  // residual, converged only if both were.
+  void add(const StepStats& s) {
+    iterations += s.iterations;
+    residual = std::max(residual, s.residual);
+    regularised_pivots += s.regularised_pivots;
+    converged = converged && s.converged;
+    work += s.work;
+  }
 };
+
+// The next piece of a walk through a step with `remaining` of it left: at most `trial` long, and the whole rest when
+// it would leave a sliver under 1 % of the piece (World::step_adaptive(), Ladder::advance()).
+inline double next_piece(double trial, double remaining) {
+  const double s = std::min(trial, remaining);
+  return remaining - s < 0.01 * s ? remaining : s;
+}
 
 // Kinetic and gravitational potential energy of the dynamic bodies, from one pass that also checks the whole state.
 struct Energy {

@@ -311,8 +311,7 @@ void Ladder::advance(double h) {
   }
   for (double done = 0; h - done > 1e-9 * h;) {
     const double left = h - done, trial = world_.adaptive_step();
-    double s = trial > 0 ? std::min(trial, left) : left;
-    if (left - s < 0.01 * s) s = left;  // no sliver left at the end
+    const double s = core::next_piece(trial > 0 ? trial : left, left);
     advance_by(s);
     done += s;
   }
