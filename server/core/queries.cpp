@@ -20,9 +20,7 @@ Vec2 World::particle_velocity(int p) const {
 
 Vec2 World::part_position(int part) const { return part_motion(part).x; }
 double World::part_angle(int part) const { return part_motion(part).th; }
-Rot World::part_rotation(int part) const { return part_motion(part).q; }
 Vec2 World::part_velocity(int part) const { return part_motion(part).v; }
-double World::part_omega(int part) const { return part_motion(part).w; }
 
 double World::kinetic_energy() const {
   double e = 0;

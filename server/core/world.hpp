@@ -230,9 +230,13 @@ class World {
   Vec2 particle_velocity(int p) const;
   Vec2 part_position(int part) const;  // centre of mass
   double part_angle(int part) const;   // unwrapped [rad]
-  Rot part_rotation(int part) const;
+  // Inline: Algorithm 1 measures every hinge from its two blocks' rotations after every step.
+  Rot part_rotation(int part) const {
+    const Part& p = parts_[part];
+    return state_[p.body].q * p.rel_q;
+  }
   Vec2 part_velocity(int part) const;
-  double part_omega(int part) const;
+  double part_omega(int part) const { return state_[parts_[part].body].w; }
 
   double kinetic_energy() const;    // dynamic bodies only [J]
   double potential_energy() const;  // gravity, dynamic bodies only [J]

@@ -195,13 +195,18 @@ Vec2 Ladder::lengthwise(int i) const {
 double Ladder::hinge_measure(int k) const {
   if (k < 1 || k >= spec_.blocks)
     throw std::invalid_argument("hinge_measure: no hinge " + std::to_string(k) + " between two blocks");
+  return measure(k, world_.part_rotation(k - 1), world_.part_rotation(k));
+}
+
+// s of hinge k from the rotations of blocks k - 1 and k.
+[[gnu::always_inline]] inline double Ladder::measure(int k, const core::Rot& qa, const core::Rot& qb) const {
   const int c = hinges_[k].corner;
   const auto unit = [&](int block) {  // from corner c to c ^ 1, in the block's frame
     const Vec2& u = unit_local_[static_cast<size_t>(block)][static_cast<size_t>(c >> 1)];
     return (c & 1) ? Vec2(-u) : u;
   };
-  const Vec2 a = world_.part_rotation(k - 1) * unit(k - 1);
-  const Vec2 b = world_.part_rotation(k) * unit(k);
+  const Vec2 a = qa * unit(k - 1);
+  const Vec2 b = qb * unit(k);
   return side_sign(k - 1, c) * core::cross(a, b);
 }
 
@@ -218,9 +223,12 @@ bool Ladder::approaching(int k) const {
 bool Ladder::any_violation(std::vector<double>& s, bool* clamped) const {
   s.assign(hinges_.size(), -1.0);
   bool any = false, inside = false;
+  core::Rot q_prev = world_.part_rotation(0);  // each block's rotation once, for its two hinges
   for (size_t k = 1; k < hinges_.size(); ++k) {
+    const core::Rot q = world_.part_rotation(static_cast<int>(k));
+    const core::Rot qa = std::exchange(q_prev, q);
     if (hinges_[k].status != HingeStatus::Hinged) continue;
-    s[k] = hinge_measure(static_cast<int>(k));
+    s[k] = measure(static_cast<int>(k), qa, q);
     if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) {  // inside, but not crossing
       s[k] = s_detect_;
       inside = true;

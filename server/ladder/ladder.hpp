@@ -158,6 +158,7 @@ class Ladder {
   bool any_violation(std::vector<double>& s, bool* clamped = nullptr) const;
   void violations_at_start(std::vector<double>& s);
   bool approaching(int k) const;
+  double measure(int k, const core::Rot& qa, const core::Rot& qb) const;
   double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
   void restructure(int k);
   void check_unlocks();
