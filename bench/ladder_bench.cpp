@@ -97,6 +97,26 @@ void ChainHangingProjection(benchmark::State& state) {
   run(state, std::move(l), false);
 }
 void LadderFast(benchmark::State& state) { run(state, ladder(static_cast<int>(state.range(0)), true, true), true); }
+// The reduced integrator (minimal coordinates: no constraint solve, hinges exact to rounding) on the same workloads.
+core::Options reduced(core::Options o) {
+  o.integrator = core::Integrator::Reduced;
+  return o;
+}
+void ChainZeroGReduced(benchmark::State& state) {
+  auto l = chain(static_cast<int>(state.range(0)), false);
+  l->set_options(reduced(l->world().options()));
+  run(state, std::move(l), false);
+}
+void ChainHangingReduced(benchmark::State& state) {
+  auto l = chain(static_cast<int>(state.range(0)), true);
+  l->set_options(reduced(l->world().options()));
+  run(state, std::move(l), false);
+}
+void LadderReduced(benchmark::State& state) {
+  auto l = ladder(static_cast<int>(state.range(0)), true);
+  l->set_options(reduced(l->world().options()));
+  run(state, std::move(l), true);
+}
 
 // A fixed number of steps per size (the same early motion at every size): 1.5 s of simulated time up to
 // N = 1000, 0.2 s at 10 000 and 0.03 s at 100 000.
@@ -114,6 +134,11 @@ BENCHMARK(ChainZeroGFast)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillise
 BENCHMARK(ChainHangingFast)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(ChainHangingProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderFast)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainZeroGReduced)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainZeroGReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainZeroGReduced)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainHangingReduced)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderReduced)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

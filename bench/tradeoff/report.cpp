@@ -108,7 +108,7 @@ void write_markdown(const std::string& path, const std::vector<CaseReport>& repo
     }
     // Observed order: the error ratio when the step halves, per integrator.
     out << "\nError ratio when dt halves (angle max; about 2 for a first-order method, 4 for second, 16 for RK4):\n\n";
-    for (const char* integrator : {"euler", "symplectic_euler", "rattle", "rk4", "projection"}) {
+    for (const char* integrator : {"euler", "symplectic_euler", "rattle", "rk4", "projection", "reduced"}) {
       std::vector<const Result*> line;
       for (const Result& r : c.results)
         if (r.knob == integrator && r.ok) line.push_back(&r);

@@ -183,7 +183,7 @@ std::vector<Case> cases(const Options& o) {
 std::vector<Setting> settings(const Case& c, const Options& o) {
   std::vector<Setting> out;
   // The time step, for every integrator (and the paper's solver with the default integrator).
-  for (const char* integrator : {"euler", "symplectic_euler", "rattle", "rk4", "projection"})
+  for (const char* integrator : {"euler", "symplectic_euler", "rattle", "rk4", "projection", "reduced"})
     for (double dt : c.dts)
       out.push_back({integrator, "dt=" + ms(dt) + " ms",
                      {std::string("sim.integrator=") + integrator, "sim.dt=" + number(dt)}});

@@ -69,7 +69,9 @@ class BlockTridiag {
   // velocity projection of every step is this). row(k, d, u_prev, b) sets D_k as {d00, d01, d11}, U_{k-1} (zero
   // when the rows share no body; not read at k = 0) and b_k. Stores what forward() and backward() need, as
   // factor_forward() does. Results differ from factor_forward()'s in rounding only.
-  template <class RowFn>
+  // With kForwardLater false only what backward() needs is stored, not the Schur inverses and L blocks that a later
+  // forward() reads: a one-off solve writes half as much.
+  template <bool kForwardLater = true, class RowFn>
   int factor_forward_symmetric(int n, RowFn&& row, std::vector<Vec2>& z) {
     if (size() != n) resize(n);
     z.resize(static_cast<size_t>(n));
@@ -77,26 +79,24 @@ class BlockTridiag {
     double d[3];
     Mat2 u;
     Vec2 b;
+    double s00 = 0, s01 = 0, s11 = 0;  // the last Schur complement's inverse (symmetric)
     for (int k = 0; k < n; ++k) {
       row(k, d, u, b);
       double b0 = b.x(), b1 = b.y();
-      Mat2& low = lower[k];
       if (k > 0) {
-        const Mat2& si = schur_inv_[k - 1];  // symmetric
-        const double s00 = si(0, 0), s01 = si(0, 1), s11 = si(1, 1);
         const double u00 = u(0, 0), u01 = u(0, 1), u10 = u(1, 0), u11 = u(1, 1);
         const double g00 = s00 * u00 + s01 * u10, g01 = s00 * u01 + s01 * u11;
         const double g10 = s01 * u00 + s11 * u10, g11 = s01 * u01 + s11 * u11;
         gain_[k - 1] << g00, g01, g10, g11;
-        low << u00, u10, u01, u11;  // U_{k-1}^T
+        if constexpr (kForwardLater) lower[k] << u00, u10, u01, u11;  // U_{k-1}^T
         d[0] -= u00 * g00 + u10 * g10;
         d[1] -= u00 * g01 + u10 * g11;
         d[2] -= u01 * g01 + u11 * g11;
         const Vec2& zp = z[static_cast<size_t>(k - 1)];
         b0 -= u00 * zp.x() + u10 * zp.y();
         b1 -= u01 * zp.x() + u11 * zp.y();
-      } else {
-        low.setZero();
+      } else if constexpr (kForwardLater) {
+        lower[k].setZero();
       }
       double a = d[0], c = d[2];
       const double off = d[1];
@@ -111,7 +111,8 @@ class BlockTridiag {
       }
       const double inv = 1.0 / det;
       const double i00 = c * inv, i01 = -off * inv, i11 = a * inv;
-      schur_inv_[k] << i00, i01, i01, i11;
+      if constexpr (kForwardLater) schur_inv_[k] << i00, i01, i01, i11;
+      s00 = i00, s01 = i01, s11 = i11;
       z[static_cast<size_t>(k)] = Vec2(i00 * b0 + i01 * b1, i01 * b0 + i11 * b1);
     }
     return regularised;

@@ -36,30 +36,6 @@ namespace {
 
 }  // namespace
 
-// Row k of K = G W G^T at the current state for BlockTridiag::factor_forward_symmetric(), its anchors stored in
-// ua[k] and ub[k]: D_k = (w_a + w_b) I + i_a perp(u_a) perp(u_a)^T + i_b perp(u_b) perp(u_b)^T as {d00, d01, d11}
-// (perp(u) perp(u)^T = [uy^2, -ux uy; -ux uy, ux^2]) and U_{k-1} = -(w_s I + i_s perp(u_b,k-1) perp(u_a,k)^T).
-[[gnu::always_inline]] inline void World::symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub,
-                                                        double* d, Mat2& u_prev) const {
-  const Row& r = rows_[k];
-  const Body& A = bodies_[r.a];
-  const Body& B = bodies_[r.b];
-  const Vec2 pa = state_[r.a].q * r.ra, pb = state_[r.b].q * r.rb;
-  ua[k] = pa;
-  ub[k] = pb;
-  const double w = A.inv_mass + B.inv_mass, ia = A.inv_inertia, ib = B.inv_inertia;
-  d[0] = w + ia * pa.y() * pa.y() + ib * pb.y() * pb.y();
-  d[1] = -(ia * pa.x() * pa.y() + ib * pb.x() * pb.y());
-  d[2] = w + ia * pa.x() * pa.x() + ib * pb.x() * pb.x();
-  if (r.link_prev) {
-    const Vec2& p = ub[k - 1];  // perp(p) perp(pa)^T = [py pay, -py pax; -px pay, px pax]
-    u_prev << -(A.inv_mass + ia * p.y() * pa.y()), ia * p.y() * pa.x(), ia * p.x() * pa.y(),
-        -(A.inv_mass + ia * p.x() * pa.x());
-  } else {
-    u_prev.setZero();
-  }
-}
-
 void World::world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const {
   const size_t n = rows_.size();
   ua.resize(n);
@@ -209,12 +185,9 @@ double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec
     const Row& r = rows[k];
     const Vec2 m = mu[k];
     if (r.corrects_b) {  // its row-k term, then (r.b being rows[k + 1].a) its row-(k + 1) term
-      Vec2 f = -m;
-      double tau = -cross(ub0[k], m);
-      if (r.shares_next) {
-        f += mu[k + 1];
-        tau += cross(ua0[k + 1], mu[k + 1]);
-      }
+      Vec2 f;
+      double tau;
+      load_on_b(k, mu, ua0.data(), ub0.data(), f, tau);
       correct_body(r.b, f, tau, velocity_scale);
     }
     if (r.corrects_a) correct_body(r.a, m, cross(ua0[k], m), velocity_scale);

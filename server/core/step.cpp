@@ -6,6 +6,9 @@
 //  rk4:                       4 stages of the same accelerations -> project positions, velocities
 //  projection:                kick(h) -> drift(h) -> project onto C(q1) = 0 along G(q) at the current iterate
 //                             (impulses enter v too) -> nothing more
+//  reduced:                   hinge forces at the start (the index-1 solve) -> symplectic Euler in each chain's
+//                             own coordinates (its first body's pose, then every body's angle) -> every other body
+//                             placed and moved by its hinge: no constraint solve, the hinges hold by construction
 // SHAKE and RATTLE are symplectic on the constraint manifold (Hairer, Lubich & Wanner, Geometric Numerical
 // Integration, VII.1): energy errors stay bounded instead of drifting. The explicit methods integrate the index-1
 // equations and are kept on the manifold by projection after each step (post-stabilisation), which does not
@@ -19,6 +22,17 @@
 // accuracy and numerical damping of fast modes. Each iteration is one fused pass (anchors, residual, build, factor,
 // forward substitution) and one back-substitution pass that corrects the bodies; one iteration usually suffices at
 // a loose tolerance. With stabilization = none no velocity projection follows: the cheapest step the core has.
+//
+// reduced integrates a chain in its minimal coordinates, as robotics codes integrate a serial arm in its joint
+// angles (Featherstone, Rigid Body Dynamics Algorithms, 2008): the chain's first body has its full pose (or a drive)
+// and each further body only its angle, since the hinge places it. The accelerations are those of the constrained
+// equations at the start of the step, K lambda = -(a_free(p_a) - a_free(p_b)) (the same O(n) block-tridiagonal
+// solve as the explicit integrators', one factorisation), the angular velocities and angles take a symplectic Euler
+// step, and forward kinematics along each chain then puts every body where its hinge says, with the velocity its
+// hinge gives. Hinge errors are rounding (a few ulps of the positions); there is no position or velocity
+// projection and no Newton iteration. First order, like SHAKE, but not symplectic: a chain's mass matrix in its
+// angles depends on the angles (docs/tradeoff.md measures its energy error). A chain that does not start at a body
+// of its own (a row whose second body is driven: a chain held at both ends, or at its far end) is stepped by SHAKE.
 #include "core/world.hpp"
 
 #include <algorithm>
@@ -28,6 +42,9 @@
 
 namespace ladder::core {
 
+// As in constraints.cpp: the sweeps' row lambdas must inline.
+#define HOT_INLINE __attribute__((always_inline))
+
 const char* to_string(Integrator i) {
   switch (i) {
     case Integrator::Euler: return "euler";
@@ -35,6 +52,7 @@ const char* to_string(Integrator i) {
     case Integrator::Rattle: return "rattle";
     case Integrator::RK4: return "rk4";
     case Integrator::Projection: return "projection";
+    case Integrator::Reduced: return "reduced";
   }
   return "?";
 }
@@ -48,11 +66,11 @@ const char* to_string(SolverKind s) {
 }
 
 Integrator integrator_from_string(const std::string& s) {
-  for (Integrator i :
-       {Integrator::Euler, Integrator::SymplecticEuler, Integrator::Rattle, Integrator::RK4, Integrator::Projection})
+  for (Integrator i : {Integrator::Euler, Integrator::SymplecticEuler, Integrator::Rattle, Integrator::RK4,
+                       Integrator::Projection, Integrator::Reduced})
     if (s == to_string(i)) return i;
   throw std::invalid_argument("unknown integrator '" + s +
-                              "' (expected euler, symplectic_euler, rattle, rk4 or projection)");
+                              "' (expected euler, symplectic_euler, rattle, rk4, projection or reduced)");
 }
 
 const char* to_string(Stabilization s) {
@@ -221,7 +239,8 @@ int order(Integrator i) {
     case Integrator::RK4: return 4;
     case Integrator::Euler:
     case Integrator::SymplecticEuler:
-    case Integrator::Projection: return 1;
+    case Integrator::Projection:
+    case Integrator::Reduced: return 1;
   }
   return 1;
 }
@@ -334,6 +353,7 @@ void World::step_fixed(double h) {
     case Integrator::Euler: step_explicit(h, false); break;
     case Integrator::RK4: step_explicit(h, true); break;
     case Integrator::Projection: step_projection(h); break;
+    case Integrator::Reduced: step_reduced(h); break;
   }
   stats_.work = finish_work(t0, h);
   mark_motion_changed();  // whatever stage changed velocities last
@@ -424,6 +444,114 @@ void World::step_projection(double h) {
   stats_.converged = solve_projection(1.0 / h);
   t_ = t1;
   if (options_.stabilization != Stabilization::None) project_velocities();
+}
+
+// Whether every hinge row's second body is dynamic (each chain then grows from its first body, row by row, since
+// rows_ is ordered along chains), and which dynamic bodies are in no hinge. Computed once per structure.
+bool World::reduced_applies() {
+  if (reduced_structure_ == structure_) return reduced_ok_;
+  reduced_structure_ = structure_;
+  reduced_ok_ = true;
+  std::vector<char> hinged(bodies_.size(), 0);
+  for (const Row& r : rows_) {
+    if (bodies_[r.b].kinematic) reduced_ok_ = false;
+    hinged[r.a] = hinged[r.b] = 1;
+  }
+  loose_bodies_.clear();
+  for (size_t b = 0; b < bodies_.size(); ++b)
+    if (!hinged[b] && !bodies_[b].kinematic) loose_bodies_.push_back(static_cast<int>(b));
+  return reduced_ok_;
+}
+
+void World::step_reduced(double h) {
+  if (!reduced_applies()) {
+    step_shake(h, false);
+    return;
+  }
+  const double t1 = t_ + h;
+  const size_t nb = bodies_.size();
+  if (kin_acc_.size() != nb) drive_kinematic(t_);  // the drives' accelerations at the start
+  // The free forces: gravity and damping inline, unless users' forces or hinge friction need the general sum. Without
+  // damping a one-part body's is its weight alone.
+  const bool general = options_.hinge_friction != 0 || !forces_.empty();
+  const bool undamped = !general && options_.linear_damping == 0 && options_.angular_damping == 0;
+  const Vec2 g = options_.gravity;
+  if (general) accumulate_forces(force_, torque_, h);
+  const auto free_force = [&](int i, const Body& body, const BodyState& s, Vec2& f, double& tau) HOT_INLINE {
+    if (general) {
+      f = force_[i], tau = torque_[i];
+    } else if (body.single_part) {
+      f = body.mass * (g - options_.linear_damping * s.v);
+      tau = -options_.angular_damping * body.inertia * s.w;
+    } else {
+      body_force(i, f, tau);
+    }
+  };
+  // A body's acceleration at anchor u without the hinges (a driven body's: its drive's).
+  const auto free_acceleration = [&](int i, const Vec2& u) HOT_INLINE {
+    const Body& body = bodies_[i];
+    const BodyState& s = state_[i];
+    if (body.kinematic) return Vec2(kin_acc_[i] + kin_alpha_[i] * perp(u) - (s.w * s.w) * u);
+    if (undamped && body.single_part) return Vec2(g - (s.w * s.w) * u);
+    Vec2 f;
+    double tau;
+    free_force(i, body, s, f, tau);
+    return Vec2(body.inv_mass * f + (body.inv_inertia * tau) * perp(u) - (s.w * s.w) * u);
+  };
+  // Pass 1: K at the start, factored, with the hinge forces' right-hand side forward-substituted.
+  const int n = static_cast<int>(rows_.size());
+  ua0_.resize(rows_.size());
+  ub0_.resize(rows_.size());
+  const auto row = [&](int k, double* d, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
+    const Row& r = rows_[k];
+    symmetric_row(k, ua0_, ub0_, d, u_prev);
+    rhs = -(free_acceleration(r.a, ua0_[k]) - free_acceleration(r.b, ub0_[k]));
+  };
+  if (n > 0) stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
+  // Pass 2, backwards: each body's hinge forces once both its rows' are known, then its angular velocity and angle
+  // (a chain's first body: its whole pose) by symplectic Euler.
+  const auto advance = [&](int i, Vec2 f, double tau, bool whole) HOT_INLINE {
+    const Body& body = bodies_[i];
+    BodyState& s = state_[i];
+    if (!(undamped && body.single_part)) {
+      Vec2 f0;
+      double tau0;
+      free_force(i, body, s, f0, tau0);
+      f += f0;
+      tau += tau0;
+    }
+    s.w += h * body.inv_inertia * tau;
+    const double dth = h * s.w;
+    s.th += dth;
+    s.q = (s.q * rotation_of_small_angle(dth)).renormalised();
+    if (whole) {
+      s.v += h * (body.inv_mass * f + (undamped && body.single_part ? g : Vec2::Zero()));
+      s.x += h * s.v;
+    }
+  };
+  if (n > 0)
+    system_.backward(mu_, [&](int k) HOT_INLINE {
+      const Row& r = rows_[k];
+      const Vec2& l = mu_[k];
+      Vec2 f;
+      double tau;
+      load_on_b(k, mu_.data(), ua0_.data(), ub0_.data(), f, tau);
+      advance(r.b, f, tau, false);
+      if (!r.link_prev && !bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[k], l), true);
+      if (records_impulse(r)) row_impulse_[k] += h * l;
+    });
+  for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);
+  drive_kinematic(t1);  // the driven first bodies, where their drives are at the end
+  // Pass 3, forwards: every further body where its hinge puts it, moving as its hinge moves.
+  for (const Row& r : rows_) {
+    const BodyState& a = state_[r.a];
+    BodyState& b = state_[r.b];
+    const Vec2 pa = a.q * r.ra, pb = b.q * r.rb;
+    b.x = (a.x + pa) - pb;
+    b.v = (a.v + a.w * perp(pa)) - b.w * perp(pb);
+  }
+  t_ = t1;
+  mark_state_changed();
 }
 
 void World::step_explicit(double h, bool rk4) {

@@ -30,7 +30,7 @@
 
 namespace ladder::core {
 
-enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection };
+enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection, Reduced };
 enum class SolverKind { Newton, NewtonLineSearch };
 // What keeps the state on the constraint manifold after a step, beyond what the integrator does itself:
 //  - none: nothing (explicit integrators drift off the hinges; SHAKE and projection keep positions exact, their
@@ -317,6 +317,17 @@ class World {
     s.v += velocity_scale * dx;
     s.w += velocity_scale * dth;
   }
+  // The force and moment that row k's multiplier (negated: it acts on its body b) and, when row k + 1 shares that
+  // body, row k + 1's put on rows_[k].b, summed in that order as every sweep sums them.
+  [[gnu::always_inline]] void load_on_b(int k, const Vec2* mu, const Vec2* ua, const Vec2* ub, Vec2& f,
+                                        double& tau) const {
+    f = -mu[k];
+    tau = -cross(ub[k], mu[k]);
+    if (rows_[k].shares_next) {
+      f += mu[k + 1];
+      tau += cross(ua[k + 1], mu[k + 1]);
+    }
+  }
   double forward_residual(const BlockTridiag& sys);
   double correct_along_chain(const BlockTridiag& sys, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                              double velocity_scale);
@@ -349,6 +360,8 @@ class World {
   void step_shake(double h, bool rattle);
   void step_explicit(double h, bool rk4);
   void step_projection(double h);
+  void step_reduced(double h);
+  bool reduced_applies();
   double factor_current_forward();
   void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;
   bool solve_projection(double velocity_scale);
@@ -414,9 +427,40 @@ class World {
   std::uint64_t anchors_version_ = 0, residual_version_ = 0;
   double residual_ = 0;
 
+  // The reduced step's view of the structure (reduced_applies()), for the structure it was made for: whether every
+  // chain grows from its first body (no row's second body is driven), and the dynamic bodies in no hinge.
+  std::uint64_t reduced_structure_ = ~std::uint64_t{0};
+  bool reduced_ok_ = false;
+  std::vector<int> loose_bodies_;
+
   // scratch, kept to avoid allocation in the step
   std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;
   std::vector<double> tau_, torque_, acc_ang_;
 };
+
+// Row k of K = G W G^T at the current state for BlockTridiag::factor_forward_symmetric(), its anchors stored in
+// ua[k] and ub[k]: D_k = (w_a + w_b) I + i_a perp(u_a) perp(u_a)^T + i_b perp(u_b) perp(u_b)^T as {d00, d01, d11}
+// (perp(u) perp(u)^T = [uy^2, -ux uy; -ux uy, ux^2]) and U_{k-1} = -(w_s I + i_s perp(u_b,k-1) perp(u_a,k)^T).
+// In the header: the velocity projection (constraints.cpp) and the reduced step (step.cpp) inline it in their sweeps.
+[[gnu::always_inline]] inline void World::symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub,
+                                                        double* d, Mat2& u_prev) const {
+  const Row& r = rows_[k];
+  const Body& A = bodies_[r.a];
+  const Body& B = bodies_[r.b];
+  const Vec2 pa = state_[r.a].q * r.ra, pb = state_[r.b].q * r.rb;
+  ua[k] = pa;
+  ub[k] = pb;
+  const double w = A.inv_mass + B.inv_mass, ia = A.inv_inertia, ib = B.inv_inertia;
+  d[0] = w + ia * pa.y() * pa.y() + ib * pb.y() * pb.y();
+  d[1] = -(ia * pa.x() * pa.y() + ib * pb.x() * pb.y());
+  d[2] = w + ia * pa.x() * pa.x() + ib * pb.x() * pb.x();
+  if (r.link_prev) {
+    const Vec2& p = ub[k - 1];  // perp(p) perp(pa)^T = [py pay, -py pax; -px pay, px pax]
+    u_prev << -(A.inv_mass + ia * p.y() * pa.y()), ia * p.y() * pa.x(), ia * p.x() * pa.y(),
+        -(A.inv_mass + ia * p.x() * pa.x());
+  } else {
+    u_prev.setZero();
+  }
+}
 
 }  // namespace ladder::core

@@ -198,16 +198,15 @@ double Ladder::hinge_measure(int k) const {
   return measure(k, world_.part_rotation(k - 1), world_.part_rotation(k));
 }
 
-// s of hinge k from the rotations of blocks k - 1 and k.
+// s of hinge k from the rotations of blocks k - 1 and k: sigma cross(R_a u_a, R_b u_b) = sigma cross(u_a, R u_b) with
+// R = R_a^-1 R_b, = sigma (cos cross(u_a, u_b) + sin u_a.u_b), the units in the blocks' frames (no rotated vectors).
 [[gnu::always_inline]] inline double Ladder::measure(int k, const core::Rot& qa, const core::Rot& qb) const {
   const int c = hinges_[k].corner;
-  const auto unit = [&](int block) {  // from corner c to c ^ 1, in the block's frame
-    const Vec2& u = unit_local_[static_cast<size_t>(block)][static_cast<size_t>(c >> 1)];
-    return (c & 1) ? Vec2(-u) : u;
-  };
-  const Vec2 a = qa * unit(k - 1);
-  const Vec2 b = qb * unit(k);
-  return side_sign(k - 1, c) * core::cross(a, b);
+  const Vec2& ua = unit_local_[static_cast<size_t>(k - 1)][static_cast<size_t>(c >> 1)];
+  const Vec2& ub = unit_local_[static_cast<size_t>(k)][static_cast<size_t>(c >> 1)];
+  // From corner c to c ^ 1 on both blocks: reversing both (c odd) leaves the cross product as it is.
+  const double cos = qa.c * qb.c + qa.s * qb.s, sin = qa.c * qb.s - qa.s * qb.c;
+  return side_sign(k - 1, c) * (cos * core::cross(ua, ub) + sin * ua.dot(ub));
 }
 
 // ds/dt = sigma (a.b) (w_k - w_{k-1}): turning block k by dphi changes s by sigma (a.b) dphi, block k-1 the other
@@ -221,19 +220,30 @@ bool Ladder::approaching(int k) const {
 }
 
 bool Ladder::any_violation(std::vector<double>& s, bool* clamped) const {
-  s.assign(hinges_.size(), -1.0);
+  // Raw pointers and locals: writes through s would otherwise make the compiler reload hinges_ and s_detect_ for
+  // every hinge.
+  const size_t n = hinges_.size();
+  const HingeInfo* hinge = hinges_.data();
+  const double detect = s_detect_;
+  s.resize(n);
+  double* out = s.data();
+  if (n > 0) out[0] = -1.0;
   bool any = false, inside = false;
   core::Rot q_prev = world_.part_rotation(0);  // each block's rotation once, for its two hinges
-  for (size_t k = 1; k < hinges_.size(); ++k) {
+  for (size_t k = 1; k < n; ++k) {
     const core::Rot q = world_.part_rotation(static_cast<int>(k));
     const core::Rot qa = std::exchange(q_prev, q);
-    if (hinges_[k].status != HingeStatus::Hinged) continue;
-    s[k] = measure(static_cast<int>(k), qa, q);
-    if (s[k] > s_detect_ && !approaching(static_cast<int>(k))) {  // inside, but not crossing
-      s[k] = s_detect_;
+    if (hinge[k].status != HingeStatus::Hinged) {
+      out[k] = -1.0;
+      continue;
+    }
+    double v = measure(static_cast<int>(k), qa, q);
+    if (v > detect && !approaching(static_cast<int>(k))) {  // inside, but not crossing
+      v = detect;
       inside = true;
     }
-    any = any || s[k] > s_detect_;
+    out[k] = v;
+    any = any || v > detect;
   }
   if (clamped) *clamped = inside;
   return any;

@@ -90,8 +90,8 @@ constexpr std::array kKeys{
     KeyDef{.name = "sim.accuracy", .kind = Kind::Choice, .choices = "fast|balanced|accurate",
            .help = "preset for sim.integrator, sim.substeps, sim.stabilization and solver.*; such a key given "
                    "beside it, or by --set over a file's preset, wins (docs/tradeoff.md)"},
-    KeyDef{.name = "sim.integrator", .kind = Kind::Choice, .choices = "euler|symplectic_euler|rattle|rk4|projection",
-           .help = "time integrator"},
+    KeyDef{.name = "sim.integrator", .kind = Kind::Choice,
+           .choices = "euler|symplectic_euler|rattle|rk4|projection|reduced", .help = "time integrator"},
     KeyDef{.name = "sim.stabilization", .kind = Kind::Choice, .choices = "none|velocity|position",
            .help = "projection back onto the hinges after a step"},
     KeyDef{.name = "sim.adaptive", .kind = Kind::Boolean,

@@ -514,12 +514,12 @@ TEST(Help, OneLinePerKey) {
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
   EXPECT_NE(help.find("(>= 1 and <= 1000000)"), std::string::npos);
-  EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4|projection"), std::string::npos);
+  EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4|projection|reduced"), std::string::npos);
   EXPECT_NE(help.find("fast|balanced|accurate"), std::string::npos);
 }
 
 TEST(Help, EveryIntegratorAndSolverItListsIsAccepted) {
-  for (const char* i : {"euler", "symplectic_euler", "rattle", "rk4", "projection"})
+  for (const char* i : {"euler", "symplectic_euler", "rattle", "rk4", "projection", "reduced"})
     EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("sim.integrator=") + i})) << i;
   for (const char* k : {"newton", "newton_linesearch"})
     EXPECT_NO_THROW(parse_scene("", "<string>", {std::string("solver.kind=") + k})) << k;
