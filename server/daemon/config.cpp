@@ -71,6 +71,8 @@ const std::vector<Key>& keys() {
       number_key("server.publish_rate", [](DaemonConfig& c, double v) { c.server.rates.publish = v; }),
       number_key("server.stats_rate", [](DaemonConfig& c, double v) { c.server.stats_rate = v; }),
       number_key("server.real_time_factor", [](DaemonConfig& c, double v) { c.server.rates.real_time_factor = v; }),
+      integer_key("server.realtime_priority", 0, 99,
+                  [](DaemonConfig& c, long long v) { c.server.realtime_priority = static_cast<int>(v); }),
       integer_key("commands.queue", 1, 1'000'000,
                   [](DaemonConfig& c, long long v) { c.server.queue = static_cast<std::size_t>(v); }),
       integer_key("commands.per_tick", 1, 100'000,
@@ -108,6 +110,8 @@ void check_config(const DaemonConfig& c) {
   positive(s.stats_rate, 100, "server.stats_rate");
   if (!(s.rates.real_time_factor >= 0 && s.rates.real_time_factor <= 1000))
     throw ConfigError("server.real_time_factor must be from 0 (as fast as possible) to 1000", "server.real_time_factor");
+  if (!(s.realtime_priority >= 0 && s.realtime_priority <= 99))
+    throw ConfigError("server.realtime_priority must be from 0 (normal scheduling) to 99", "server.realtime_priority");
   positive(s.limits.max_impulse, 1e6, "commands.max_impulse");
   positive(s.limits.max_force, 1e9, "commands.max_force");
   positive(s.limits.max_duration, 1e9, "commands.max_duration");

@@ -33,6 +33,9 @@ int main(int argc, char** argv) {
   auto* publish = app.add_option("--publish-rate", c.server.rates.publish, "states published per second");
   auto* rtf = app.add_option("--rtf", c.server.rates.real_time_factor,
                              "real-time factor: sim seconds per wall second, 0 = as fast as possible");
+  auto* realtime = app.add_option("--realtime-priority", c.server.realtime_priority,
+                                  "run the physics thread at SCHED_FIFO priority 1-99 (needs CAP_SYS_NICE); 0 = off")
+                       ->check(CLI::Range(0, 99));
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
   app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
@@ -69,6 +72,7 @@ int main(int argc, char** argv) {
     if (rate->count()) c.server.rates.physics = cli.server.rates.physics;
     if (publish->count()) c.server.rates.publish = cli.server.rates.publish;
     if (rtf->count()) c.server.rates.real_time_factor = cli.server.rates.real_time_factor;
+    if (realtime->count()) c.server.realtime_priority = cli.server.realtime_priority;
     if (level->count()) c.log_level = cli.log_level;
     if (log_file->count()) c.log_file = cli.log_file;
     if (!o.scene.empty()) c.scene = o.scene;

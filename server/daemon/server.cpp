@@ -13,6 +13,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <pthread.h>
+#include <sched.h>
 #include <sys/prctl.h>
 #include <time.h>
 
@@ -662,6 +664,22 @@ void Io::run() {
   }
 }
 
+// Puts the calling thread under SCHED_FIFO at `priority`, so that no thread of the normal scheduler (other programs:
+// viewers on the same cores) delays it; says which. Returns whether it could.
+bool run_realtime(const char* thread, int priority) {
+  sched_param param{};
+  param.sched_priority = priority;
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+  if (rc == 0) {
+    spdlog::info("{} thread at SCHED_FIFO priority {}", thread, priority);
+    return true;
+  }
+  spdlog::warn("could not run the {} thread at SCHED_FIFO priority {}: {} (it needs CAP_SYS_NICE or root); running "
+               "with normal scheduling",
+               thread, priority, std::strerror(rc));
+  return false;
+}
+
 }  // namespace
 
 int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop) {
@@ -676,6 +694,11 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
     log = std::make_unique<transport::LogWriter>(config.record);
     spdlog::info("recording the session to {}", config.record);
   }
+  // With a real-time priority this (the I/O) thread runs just below the physics thread, and so do DDS's threads,
+  // which inherit it when Io starts them: a thread of the normal scheduler could otherwise hold the I/O side up while
+  // the physics thread waits for the hand-off's lock.
+  const bool realtime =
+      config.realtime_priority > 0 && run_realtime("I/O", std::max(1, config.realtime_priority - 1));
   Io io(shared, log.get());
   Physics physics(shared, std::move(session));
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
@@ -684,6 +707,7 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
                config.rates.publish, config.rates.real_time_factor);
   std::exception_ptr physics_error;
   std::thread physics_thread([&] {
+    if (realtime) run_realtime("physics", config.realtime_priority);
     try {
       physics.run(stop);
     } catch (...) {

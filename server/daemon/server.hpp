@@ -23,6 +23,9 @@ struct ServerConfig {
   std::size_t per_tick = 100;     // commands applied per tick at most
   std::string record;             // LCM session log to write; empty = none
   double checkpoint_every = 1.0;  // [s of sim time] between checkpoints in the log
+  // SCHED_FIFO priority of the physics thread, 1 to 99; 0 = the normal scheduler. Needs CAP_SYS_NICE (or root): when
+  // refused, the server logs a warning and runs with normal scheduling.
+  int realtime_priority = 0;
 };
 
 // Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws

@@ -44,6 +44,7 @@ class Process {
   }
 
   void signal(int sig) const { kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
   // The exit status (as from waitpid) if the process ended within the timeout.
   std::optional<int> wait_exit(std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;

@@ -5,11 +5,18 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
+#include <sstream>
+#include <utility>
+#include <vector>
 
 namespace ladder::test {
 namespace {
@@ -305,6 +312,43 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   ASSERT_TRUE(WIFEXITED(*status));
   EXPECT_EQ(WEXITSTATUS(*status), 0);
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
+}
+
+// The scheduling policy (41st field of /proc/PID/task/TID/stat; 1 = SCHED_FIFO) and real-time priority (40th) of each
+// thread of a process. The second field, the thread's name, is in parentheses and may hold spaces.
+std::vector<std::pair<int, int>> thread_policies(pid_t pid) {
+  std::vector<std::pair<int, int>> out;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
+    std::ifstream in(task.path() / "stat");
+    std::string line;
+    std::getline(in, line);
+    std::istringstream rest(line.substr(line.rfind(')') + 2));  // from field 3 on
+    std::vector<std::string> f(std::istream_iterator<std::string>{rest}, {});
+    if (f.size() >= 39) out.emplace_back(std::stoi(f[38]), std::stoi(f[37]));  // fields 41 and 40
+  }
+  return out;
+}
+
+// --realtime-priority 30: the physics thread runs under SCHED_FIFO at 30, and the I/O thread with DDS's threads just
+// below, at 29; or, where the system refuses (no CAP_SYS_NICE), the log says why and every thread keeps the normal
+// scheduler. The ladder is served either way.
+TEST_F(Server, RealtimePriorityPutsThePhysicsThreadUnderSchedFifo) {
+  start({"--realtime-priority", "30"});
+  ASSERT_TRUE(c().wait_state([](const client::State& st) { return st.step > 0; }, kAnswer));
+  const auto threads = thread_policies(server_->pid());
+  const auto count = [&](int policy, int priority) {
+    return std::count(threads.begin(), threads.end(), std::pair{policy, priority});
+  };
+  if (server_->log().find("physics thread at SCHED_FIFO priority 30") != std::string::npos) {
+    EXPECT_NE(server_->log().find("I/O thread at SCHED_FIFO priority 29"), std::string::npos) << server_->log();
+    EXPECT_EQ(count(1, 30), 1) << "exactly one thread, the physics thread, at 30";
+    EXPECT_GE(count(1, 29), 2) << "the I/O thread and DDS's threads at 29";
+  } else {
+    EXPECT_NE(server_->log().find("could not run the I/O thread at SCHED_FIFO priority 29"), std::string::npos)
+        << server_->log();
+    EXPECT_NE(server_->log().find("CAP_SYS_NICE"), std::string::npos) << server_->log();
+    EXPECT_EQ(count(1, 30) + count(1, 29), 0);
+  }
 }
 
 // Two ladders on one domain: each client sees only its own.
