@@ -284,6 +284,9 @@ void Physics::take_commands() {
     o.acks.insert(o.acks.end(), acks.begin(), acks.end());
     o.commands.insert(o.commands.end(), commands.begin(), commands.end());
   });
+  // The acks go out now, not after this tick's step (0.6 to 0.9 ms at N = 10 000): each command took effect at the
+  // tick's start, before the step.
+  sh_.waiter->wake();
 }
 
 void Physics::run_step() {
