@@ -31,8 +31,8 @@
 // step, and forward kinematics along each chain then puts every body where its hinge says, with the velocity its
 // hinge gives. Hinge errors are rounding (a few ulps of the positions); there is no position or velocity
 // projection and no Newton iteration. First order, like SHAKE, but not symplectic: a chain's mass matrix in its
-// angles depends on the angles (docs/tradeoff.md measures its energy error). A chain that does not start at a body
-// of its own (a row whose second body is driven: a chain held at both ends, or at its far end) is stepped by SHAKE.
+// angles depends on the angles (docs/tradeoff.md measures its energy error). A chain held at one end grows from that
+// end, whichever way its rows run; a chain held at both ends cannot, and SHAKE steps the world.
 #include "core/world.hpp"
 
 #include <algorithm>
@@ -446,16 +446,29 @@ void World::step_projection(double h) {
   if (options_.stabilization != Stabilization::None) project_velocities();
 }
 
-// Whether every hinge row's second body is dynamic (each chain then grows from its first body, row by row, since
-// rows_ is ordered along chains), and which dynamic bodies are in no hinge. Computed once per structure.
+// The chains as the reduced step walks them, once per structure. rows_ is ordered along chains (topology.cpp), but
+// a chain's direction there is whichever end order_rows() met first: one held at its last row's body b grows from
+// that end instead. A chain with both ends driven cannot grow from either, and SHAKE steps the world.
 bool World::reduced_applies() {
   if (reduced_structure_ == structure_) return reduced_ok_;
   reduced_structure_ = structure_;
   reduced_ok_ = true;
+  reduced_chains_.clear();
+  reduced_from_end_.assign(rows_.size(), 0);
   std::vector<char> hinged(bodies_.size(), 0);
-  for (const Row& r : rows_) {
-    if (bodies_[r.b].kinematic) reduced_ok_ = false;
-    hinged[r.a] = hinged[r.b] = 1;
+  const int n = static_cast<int>(rows_.size());
+  for (int k = 0; k < n;) {
+    int last = k;
+    while (last + 1 < n && rows_[last + 1].link_prev) ++last;
+    const bool driven_start = bodies_[rows_[k].a].kinematic, driven_end = bodies_[rows_[last].b].kinematic;
+    if (driven_start && driven_end) reduced_ok_ = false;
+    for (int j = k; j <= last; ++j) {
+      if (j > k && bodies_[rows_[j].a].kinematic) reduced_ok_ = false;  // linked through a driven body: not a chain
+      reduced_from_end_[static_cast<size_t>(j)] = driven_end && !driven_start;
+      hinged[rows_[j].a] = hinged[rows_[j].b] = 1;
+    }
+    reduced_chains_.push_back({k, last, driven_end && !driven_start});
+    k = last + 1;
   }
   loose_bodies_.clear();
   for (size_t b = 0; b < bodies_.size(); ++b)
@@ -469,8 +482,8 @@ void World::step_reduced(double h) {
     return;
   }
   const double t1 = t_ + h;
-  const size_t nb = bodies_.size();
-  if (kin_acc_.size() != nb) drive_kinematic(t_);  // the drives' accelerations at the start
+  // The drives' accelerations at the start: always anew, since after a restore() kin_acc_ holds a later time's.
+  drive_kinematic(t_);
   // The free forces: gravity and damping inline, unless users' forces or hinge friction need the general sum. Without
   // damping a one-part body's is its weight alone.
   const bool general = options_.hinge_friction != 0 || !forces_.empty();
@@ -507,9 +520,12 @@ void World::step_reduced(double h) {
     symmetric_row(k, ua0_, ub0_, d, u_prev);
     rhs = -(free_acceleration(r.a, ua0_[k]) - free_acceleration(r.b, ub0_[k]));
   };
-  if (n > 0) stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
+  if (n > 0) {
+    stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
+    factor_version_ = 0;  // only what backward() needs is kept: nothing may take system_ for a full factorisation
+  }
   // Pass 2, backwards: each body's hinge forces once both its rows' are known, then its angular velocity and angle
-  // (a chain's first body: its whole pose) by symplectic Euler.
+  // (a free chain's first body: its whole pose) by symplectic Euler.
   const auto advance = [&](int i, Vec2 f, double tau, bool whole) HOT_INLINE {
     const Body& body = bodies_[i];
     BodyState& s = state_[i];
@@ -536,19 +552,25 @@ void World::step_reduced(double h) {
       Vec2 f;
       double tau;
       load_on_b(k, mu_.data(), ua0_.data(), ub0_.data(), f, tau);
-      advance(r.b, f, tau, false);
-      if (!r.link_prev && !bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[k], l), true);
+      if (!bodies_[r.b].kinematic) advance(r.b, f, tau, false);
+      if (!r.link_prev && !bodies_[r.a].kinematic)
+        advance(r.a, l, cross(ua0_[k], l), !reduced_from_end_[static_cast<size_t>(k)]);
       if (records_impulse(r)) row_impulse_[k] += h * l;
     });
   for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);
-  drive_kinematic(t1);  // the driven first bodies, where their drives are at the end
-  // Pass 3, forwards: every further body where its hinge puts it, moving as its hinge moves.
-  for (const Row& r : rows_) {
-    const BodyState& a = state_[r.a];
-    BodyState& b = state_[r.b];
-    const Vec2 pa = a.q * r.ra, pb = b.q * r.rb;
-    b.x = (a.x + pa) - pb;
-    b.v = (a.v + a.w * perp(pa)) - b.w * perp(pb);
+  drive_kinematic(t1);  // the driven ends, where their drives are at the end
+  // Pass 3: every other body where its hinge puts it, moving as its hinge moves, from each chain's first body on.
+  const auto place = [&](BodyState& to, const Vec2& r_to, const BodyState& from, const Vec2& r_from) HOT_INLINE {
+    const Vec2 p_from = from.q * r_from, p_to = to.q * r_to;
+    to.x = (from.x + p_from) - p_to;
+    to.v = (from.v + from.w * perp(p_from)) - to.w * perp(p_to);
+  };
+  for (const ReducedChain& c : reduced_chains_) {
+    if (c.from_end) {
+      for (int k = c.last; k >= c.first; --k) place(state_[rows_[k].a], rows_[k].ra, state_[rows_[k].b], rows_[k].rb);
+    } else {
+      for (int k = c.first; k <= c.last; ++k) place(state_[rows_[k].b], rows_[k].rb, state_[rows_[k].a], rows_[k].ra);
+    }
   }
   t_ = t1;
   mark_state_changed();

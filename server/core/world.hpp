@@ -427,10 +427,17 @@ class World {
   std::uint64_t anchors_version_ = 0, residual_version_ = 0;
   double residual_ = 0;
 
-  // The reduced step's view of the structure (reduced_applies()), for the structure it was made for: whether every
-  // chain grows from its first body (no row's second body is driven), and the dynamic bodies in no hinge.
+  // The reduced step's view of the structure (reduced_applies()), for the structure it was made for: each chain's rows
+  // [first, last] and whether it grows from its last row's body b (driven) instead of its first row's body a;
+  // whether every chain has at most one driven end (else SHAKE steps); and the dynamic bodies in no hinge.
+  struct ReducedChain {
+    int first, last;
+    bool from_end;
+  };
   std::uint64_t reduced_structure_ = ~std::uint64_t{0};
   bool reduced_ok_ = false;
+  std::vector<ReducedChain> reduced_chains_;
+  std::vector<char> reduced_from_end_;  // per row: its chain grows from its end
   std::vector<int> loose_bodies_;
 
   // scratch, kept to avoid allocation in the step
