@@ -454,7 +454,6 @@ bool World::reduced_applies() {
   reduced_structure_ = structure_;
   reduced_ok_ = true;
   reduced_chains_.clear();
-  reduced_from_end_.assign(rows_.size(), 0);
   std::vector<char> hinged(bodies_.size(), 0);
   const int n = static_cast<int>(rows_.size());
   for (int k = 0; k < n;) {
@@ -462,11 +461,7 @@ bool World::reduced_applies() {
     while (last + 1 < n && rows_[last + 1].link_prev) ++last;
     const bool driven_start = bodies_[rows_[k].a].kinematic, driven_end = bodies_[rows_[last].b].kinematic;
     if (driven_start && driven_end) reduced_ok_ = false;
-    for (int j = k; j <= last; ++j) {
-      if (j > k && bodies_[rows_[j].a].kinematic) reduced_ok_ = false;  // linked through a driven body: not a chain
-      reduced_from_end_[static_cast<size_t>(j)] = driven_end && !driven_start;
-      hinged[rows_[j].a] = hinged[rows_[j].b] = 1;
-    }
+    for (int j = k; j <= last; ++j) hinged[rows_[j].a] = hinged[rows_[j].b] = 1;
     reduced_chains_.push_back({k, last, driven_end && !driven_start});
     k = last + 1;
   }
@@ -490,15 +485,11 @@ void World::step_reduced(double h) {
   const bool undamped = !general && options_.linear_damping == 0 && options_.angular_damping == 0;
   const Vec2 g = options_.gravity;
   if (general) accumulate_forces(force_, torque_, h);
-  const auto free_force = [&](int i, const Body& body, const BodyState& s, Vec2& f, double& tau) HOT_INLINE {
-    if (general) {
+  const auto free_force = [&](int i, Vec2& f, double& tau) HOT_INLINE {
+    if (general)
       f = force_[i], tau = torque_[i];
-    } else if (body.single_part) {
-      f = body.mass * (g - options_.linear_damping * s.v);
-      tau = -options_.angular_damping * body.inertia * s.w;
-    } else {
+    else
       body_force(i, f, tau);
-    }
   };
   // A body's acceleration at anchor u without the hinges (a driven body's: its drive's).
   const auto free_acceleration = [&](int i, const Vec2& u) HOT_INLINE {
@@ -508,7 +499,7 @@ void World::step_reduced(double h) {
     if (undamped && body.single_part) return Vec2(g - (s.w * s.w) * u);
     Vec2 f;
     double tau;
-    free_force(i, body, s, f, tau);
+    free_force(i, f, tau);
     return Vec2(body.inv_mass * f + (body.inv_inertia * tau) * perp(u) - (s.w * s.w) * u);
   };
   // Pass 1: K at the start, factored, with the hinge forces' right-hand side forward-substituted.
@@ -532,7 +523,7 @@ void World::step_reduced(double h) {
     if (!(undamped && body.single_part)) {
       Vec2 f0;
       double tau0;
-      free_force(i, body, s, f0, tau0);
+      free_force(i, f0, tau0);
       f += f0;
       tau += tau0;
     }
@@ -548,15 +539,18 @@ void World::step_reduced(double h) {
   if (n > 0)
     system_.backward(mu_, [&](int k) HOT_INLINE {
       const Row& r = rows_[k];
-      const Vec2& l = mu_[k];
       Vec2 f;
       double tau;
       load_on_b(k, mu_.data(), ua0_.data(), ub0_.data(), f, tau);
       if (!bodies_[r.b].kinematic) advance(r.b, f, tau, false);
-      if (!r.link_prev && !bodies_[r.a].kinematic)
-        advance(r.a, l, cross(ua0_[k], l), !reduced_from_end_[static_cast<size_t>(k)]);
-      if (records_impulse(r)) row_impulse_[k] += h * l;
+      if (records_impulse(r)) row_impulse_[k] += h * mu_[k];
     });
+  // Each chain's first body, in its first row only: its whole pose unless the chain grows from its other end.
+  for (const ReducedChain& c : reduced_chains_) {
+    const Row& r = rows_[c.first];
+    const Vec2& l = mu_[c.first];
+    if (!bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[c.first], l), !c.from_end);
+  }
   for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);
   drive_kinematic(t1);  // the driven ends, where their drives are at the end
   // Pass 3: every other body where its hinge puts it, moving as its hinge moves, from each chain's first body on.

@@ -437,7 +437,6 @@ class World {
   std::uint64_t reduced_structure_ = ~std::uint64_t{0};
   bool reduced_ok_ = false;
   std::vector<ReducedChain> reduced_chains_;
-  std::vector<char> reduced_from_end_;  // per row: its chain grows from its end
   std::vector<int> loose_bodies_;
 
   // scratch, kept to avoid allocation in the step

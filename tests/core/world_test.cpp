@@ -8,6 +8,7 @@
 #include <cstring>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace ladder::core {
@@ -457,14 +458,23 @@ TEST(World, DeterministicToTheBit) {
   EXPECT_EQ(std::memcmp(a.bodies.data(), b.bodies.data(), a.bodies.size() * sizeof(BodyState)), 0);
 }
 
-// A straight chain of n blocks hanging from a pin at (0, 0); hinge i (between blocks i - 1 and i) at their right
+// The two particles of hinge i of a straight chain of blocks `parts` (between blocks i - 1 and i): their right
 // corners for odd i, their left ones for even i, as in the ladder.
+std::pair<int, int> hinge_particles(const World& world, const std::vector<int>& parts, int i) {
+  return {world.first_particle(parts[i - 1]) + (i % 2 ? 0 : 2), world.first_particle(parts[i]) + (i % 2 ? 1 : 3)};
+}
+
+void connect_hinge(World& world, const std::vector<int>& parts, int i) {
+  const auto [p, q] = hinge_particles(world, parts, i);
+  world.connect(p, q);
+}
+
+// A straight chain of n blocks hanging from a pin at (0, 0).
 std::vector<int> hanging_chain(World& world, int n) {
   std::vector<int> parts;
   for (int i = 0; i < n; ++i) parts.push_back(world.add_part(block(Vec2(kW / 2, -kL / 2 - kL * i))));
   world.connect(anchor(world, Vec2::Zero()), world.first_particle(parts[0]) + 3);
-  for (int i = 1; i < n; ++i)
-    world.connect(world.first_particle(parts[i - 1]) + (i % 2 ? 0 : 2), world.first_particle(parts[i]) + (i % 2 ? 1 : 3));
+  for (int i = 1; i < n; ++i) connect_hinge(world, parts, i);
   return parts;
 }
 
@@ -491,10 +501,10 @@ TEST(World, ReducedStepKeepsHingesWithoutASolve) {
   EXPECT_LT(world.max_hinge_error(), 1e-14);
   EXPECT_GT(world.kinetic_energy(), 1e-6);  // it moves
   double slip = 0;  // relative velocity of each hinge's two particles
-  for (int i = 1; i < n; ++i)
-    slip = std::max(slip, (world.particle_velocity(world.first_particle(parts[i - 1]) + (i % 2 ? 0 : 2)) -
-                           world.particle_velocity(world.first_particle(parts[i]) + (i % 2 ? 1 : 3)))
-                              .norm());
+  for (int i = 1; i < n; ++i) {
+    const auto [p, q] = hinge_particles(world, parts, i);
+    slip = std::max(slip, (world.particle_velocity(p) - world.particle_velocity(q)).norm());
+  }
   EXPECT_LT(slip, 1e-12);
 
   Options held_opt;
@@ -524,10 +534,7 @@ World chain_of_three(ChainShape shape, Integrator integrator) {
   World world(opt);
   std::vector<int> parts;
   for (int i = 0; i < 3; ++i) parts.push_back(world.add_part(block(Vec2(kW / 2, -kL / 2 - kL * i))));
-  const auto hinge = [&](int i) {  // between blocks i - 1 and i, as hanging_chain()
-    world.connect(world.first_particle(parts[i - 1]) + (i % 2 ? 0 : 2), world.first_particle(parts[i]) + (i % 2 ? 1 : 3));
-  };
-  if (shape != ChainShape::FromEnd && shape != ChainShape::FreeFloating) {
+  if (shape == ChainShape::ShakenPin) {
     const int pin = anchor(world, Vec2::Zero());
     world.set_drive(world.part_of_particle(pin), [](double t) {
       Kinematics k;
@@ -538,8 +545,8 @@ World chain_of_three(ChainShape shape, Integrator integrator) {
     });
     world.connect(pin, world.first_particle(parts[0]) + 3);
   }
-  hinge(1);
-  hinge(2);
+  connect_hinge(world, parts, 1);
+  connect_hinge(world, parts, 2);
   if (shape == ChainShape::FromEnd) world.connect(anchor(world, Vec2::Zero()), world.first_particle(parts[0]) + 3);
   world.finalize();
   world.apply_impulse(parts[2], world.part_position(parts[2]) + Vec2(0, -kL / 2), Vec2(2e-3, 0));
@@ -573,7 +580,8 @@ TEST(World, ReducedStepIsFirstOrderOnEveryChainShape) {
       EXPECT_LT(w.max_hinge_error(), 1e-14) << "shape " << static_cast<int>(shape);
       if (shape != ChainShape::FreeFloating) {  // the pin (part 3) is where its drive puts it, not where a hinge would
         const Vec2 pin(shape == ChainShape::ShakenPin ? 0.02 * std::sin(6 * w.time()) : 0.0, 0.0);
-        EXPECT_LT((w.particle_position(w.first_particle(3)) - pin).norm(), 1e-15) << "shape " << static_cast<int>(shape);
+        EXPECT_LT((w.particle_position(w.first_particle(3)) - pin).norm(), 1e-15)
+            << "shape " << static_cast<int>(shape);
       }
       err[j] = largest_angle_difference(w, reference);
     }
