@@ -16,11 +16,11 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/prctl.h>
-#include <time.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <exception>
@@ -87,6 +87,7 @@ struct Shared {
   explicit Shared(const ServerConfig& c) : config(c) {}
   const ServerConfig& config;
   std::mutex inbox_mutex;
+  std::condition_variable inbox_cv;  // a command came: wakes the physics thread between ticks
   std::deque<ladder_msg_Command> inbox;
   std::mutex outbox_mutex;
   Outbox outbox;
@@ -193,6 +194,7 @@ class Physics {
 
  private:
   void take_commands();
+  void idle_until(Clock::time_point deadline, const std::atomic<bool>& stop);
   void advance(double period, Clock::time_point tick_start);
   void collect_events();
   void publish_state();
@@ -212,6 +214,7 @@ class Physics {
   double debt_ = 0;  // sim time owed to the real-time clock [s]
   std::vector<double> step_us_, late_us_;
   std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;
+  std::size_t taken_ = 0;  // commands taken since the last tick's step (at most commands.per_tick)
   double sim_at_last_stats_ = 0;
   Clock::time_point last_stats_{}, last_publish_{};
   std::uint32_t scene_generation_ = 0;
@@ -239,11 +242,12 @@ void Physics::take_commands() {
   std::vector<ladder_msg_Command> batch;
   {
     std::lock_guard lock(sh_.inbox_mutex);
-    const std::size_t n = std::min(sh_.inbox.size(), sh_.config.per_tick);
+    const std::size_t n = std::min(sh_.inbox.size(), sh_.config.per_tick - taken_);
     batch.assign(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
     sh_.inbox.erase(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
   }
   if (batch.empty()) return;
+  taken_ += batch.size();
   dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
   // One deterministic order for commands that arrive together, whatever the network did: client, then id.
   std::stable_sort(batch.begin(), batch.end(), [](const ladder_msg_Command& a, const ladder_msg_Command& b) {
@@ -287,6 +291,23 @@ void Physics::take_commands() {
   // The acks go out now, not after this tick's step (0.6 to 0.9 ms at N = 10 000): each command took effect at the
   // tick's start, before the step.
   sh_.waiter->wake();
+}
+
+// Waits for the next tick's deadline. A command that arrives meanwhile is applied at once: the simulation already
+// stands where the next tick starts, so it takes effect at the same sim time as it would then, and its ack goes
+// out without waiting for the deadline.
+void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& stop) {
+  std::unique_lock lock(sh_.inbox_mutex);
+  const auto ready = [&] {
+    return (!sh_.inbox.empty() && taken_ < sh_.config.per_tick) || stop.load(std::memory_order_relaxed) ||
+           sh_.abort.load(std::memory_order_relaxed);
+  };
+  while (sh_.inbox_cv.wait_until(lock, deadline, ready)) {
+    if (stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed)) return;
+    lock.unlock();
+    take_commands();
+    lock.lock();
+  }
 }
 
 void Physics::run_step() {
@@ -406,6 +427,7 @@ void Physics::run(const std::atomic<bool>& stop) {
     take_commands();
     if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
     advance(period, start);
+    taken_ = 0;  // commands applied between ticks and at the next tick's start share one commands.per_tick
     collect_events();
     const auto now = Clock::now();
     if (dirty_ && seconds(now - last_publish_) >= 1.0 / rates.publish - 0.5 * period) {
@@ -415,12 +437,7 @@ void Physics::run(const std::atomic<bool>& stop) {
     if (seconds(now - last_stats_) >= 1.0 / sh_.config.stats_rate) publish_stats(now);
     sh_.waiter->wake();
     deadline += period_d;
-    if (rates.real_time_factor > 0 || session_.paused()) {
-      const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline.time_since_epoch()).count();
-      const timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-      while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-      }
-    }
+    if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
   }
   publish_state();
   sh_.physics_done = true;
@@ -500,6 +517,7 @@ void Io::take_commands() {
         sh_.inbox.push_back(c);
     }
   }
+  sh_.inbox_cv.notify_one();
   if (over.empty()) return;
   sh_.rate_limited.fetch_add(over.size());
   spdlog::warn("rate limit: {} command(s) refused ({} already queued)", over.size(), sh_.config.queue);

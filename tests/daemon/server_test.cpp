@@ -302,6 +302,26 @@ TEST_F(Server, TenThousandCommandsInABurstAreAllAnswered) {
   EXPECT_EQ(after->commands_rate_limited, static_cast<std::uint64_t>(rate_limited));
 }
 
+// commands.per_tick holds also for the commands the server applies between ticks, as they arrive: with a cap of 1,
+// a burst is applied one command per step, in the order sent.
+TEST_F(Server, PerTickCapHoldsBetweenTicks) {
+  const std::string config = std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".toml";
+  std::ofstream(config) << "[commands]\nper_tick = 1\n";
+  start({"--config", config});
+  constexpr int kBurst = 20;
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < kBurst; ++i) ids.push_back(c().send(cmd::set("damping.hinge=0")));
+  std::vector<std::uint64_t> steps;
+  for (std::uint64_t id : ids) {
+    const auto a = c().wait_ack(id, kAnswer);
+    ASSERT_TRUE(a.has_value()) << "command " << id << " was never answered";
+    ASSERT_TRUE(a->accepted) << a->reason;
+    steps.push_back(a->step);
+  }
+  for (std::size_t i = 1; i < steps.size(); ++i)
+    EXPECT_GT(steps[i], steps[i - 1]) << "commands " << i - 1 << " and " << i << " were applied at one step";
+}
+
 TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   start();
   const auto t0 = Clock::now();
