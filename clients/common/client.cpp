@@ -147,7 +147,13 @@ void Client::poll() {
   });
   state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
-    State& st = state_.emplace();
+    // One pose (three numbers) and one hinge per block; a state whose sequences disagree is not drawable.
+    const std::size_t n = s.hinge_corner._length;
+    if (s.poses._length != 3 * n || s.hinge_status._length != n || s.hinge_flips._length != n) {
+      ++states_malformed_;
+      return;
+    }
+    State& st = state_ ? *state_ : state_.emplace();  // reuses the vectors' storage
     st.latency = 1e-9 * static_cast<double>(dds_time() - info.source_timestamp);
     st.generation = s.generation;
     st.seq = s.seq;
@@ -156,8 +162,13 @@ void Client::poll() {
     st.sim_time = s.sim_time;
     st.energy = s.energy;
     st.paused = s.paused;
-    st.blocks.assign(s.blocks._buffer, s.blocks._buffer + s.blocks._length);
-    st.hinges.assign(s.hinges._buffer, s.hinges._buffer + s.hinges._length);
+    st.blocks.resize(n);
+    st.hinges.resize(n);
+    const double* p = s.poses._buffer;
+    for (std::size_t k = 0; k < n; ++k) {
+      st.blocks[k] = {p[3 * k], p[3 * k + 1], p[3 * k + 2]};
+      st.hinges[k] = {s.hinge_corner._buffer[k], s.hinge_status._buffer[k], s.hinge_flips._buffer[k]};
+    }
     st.grips.assign(s.grips._buffer, s.grips._buffer + s.grips._length);
     ++state_count_;
   });

@@ -36,13 +36,25 @@ struct Event {
   std::string detail;
 };
 
+// One block's pose: its centre [m] and angle [rad].
+struct Pose {
+  double x = 0, y = 0, theta = 0;
+};
+
+// Hinge k (above block k): the particle number (0..3) it joins on both blocks, its status and its flip-flops.
+struct Hinge {
+  std::uint8_t corner = 0;
+  ladder_msg_HingeStatus status = ladder_msg_HINGED;
+  std::uint32_t flips = 0;
+};
+
 struct State {
   std::uint32_t generation = 0;
   std::uint64_t seq = 0, step = 0, commands_applied = 0;
   double sim_time = 0, energy = 0;
   bool paused = false;
-  std::vector<ladder_msg_Pose> blocks;
-  std::vector<ladder_msg_Hinge> hinges;
+  std::vector<Pose> blocks;
+  std::vector<Hinge> hinges;
   std::vector<ladder_msg_Grip> grips;
   double latency = 0;  // [s] from the server's write to our take (same host: one clock; across hosts: clock offset)
 };
@@ -108,6 +120,8 @@ class Client {
   const std::optional<State>& latest_state() const { return state_; }
   const std::optional<SceneInfo>& scene_info() const { return scene_; }
   std::size_t acks_received() const { return acks_received_; }
+  // States dropped because their sequences disagree (not one pose and one hinge per block).
+  std::uint64_t states_malformed() const { return states_malformed_; }
   const std::string& client_id() const { return client_id_; }
 
  private:
@@ -129,6 +143,7 @@ class Client {
   std::vector<Event> events_;
   std::optional<State> state_;
   std::uint64_t state_count_ = 0;
+  std::uint64_t states_malformed_ = 0;
   std::optional<SceneInfo> scene_;
   std::optional<ladder_msg_Stats> stats_;
   std::uint64_t stats_count_ = 0;

@@ -48,7 +48,7 @@ struct View {
                                    c.scale),
         length_px(i.length * c.scale) {}
 
-  bool visible(const ladder_msg_Pose& p) const {
+  bool visible(const client::Pose& p) const {
     const Point s = cam.to_screen({p.x, p.y});
     return s.x > -radius_px && s.x < cam.width + radius_px && s.y > -radius_px && s.y < cam.height + radius_px;
   }
@@ -56,11 +56,11 @@ struct View {
 };
 
 // Far away, a block is a few pixels: the ladder is drawn as one polyline through the centres.
-void draw_chain(cairo_t* cr, const View& v, const std::vector<ladder_msg_Pose>& blocks) {
+void draw_chain(cairo_t* cr, const View& v, const std::vector<client::Pose>& blocks) {
   cairo_set_line_width(cr, std::max(1.0, v.info.thickness * v.cam.scale));
   cairo_set_line_cap(cr, CAIRO_LINE_CAP_ROUND);
   bool open = false;
-  for (const ladder_msg_Pose& p : blocks) {
+  for (const client::Pose& p : blocks) {
     if (!v.visible(p)) {
       open = false;
       continue;
@@ -90,7 +90,7 @@ void draw_depth(cairo_t* cr, const View& v, const std::array<Point, 4>& front) {
   }
 }
 
-std::array<Point, 4> screen_outline(const View& v, const ladder_msg_Pose& p) {
+std::array<Point, 4> screen_outline(const View& v, const client::Pose& p) {
   std::array<Point, 4> o = outline(v.info, p);
   for (Point& q : o) q = v.screen(q);
   return o;
@@ -103,7 +103,7 @@ void draw_ribbons(cairo_t* cr, const View& v, const client::State& s, const std:
   cairo_set_line_width(cr, std::clamp(0.1 * v.info.thickness * v.cam.scale, 1.0, 4.0));
   cairo_set_line_join(cr, CAIRO_LINE_JOIN_ROUND);
   for (std::size_t k = 1; k < s.blocks.size() && k < s.hinges.size(); ++k) {
-    const ladder_msg_Hinge& h = s.hinges[k];
+    const client::Hinge& h = s.hinges[k];
     if (h.status == ladder_msg_BROKEN || !(shown[k - 1] || shown[k])) continue;
     const int c = h.corner, ki = static_cast<int>(k);
     const Point a = v.screen(hinge_particle(v.info, ki - 1, c ^ 1, s.blocks[k - 1]));
@@ -123,7 +123,7 @@ void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::
   const double r = std::clamp(0.15 * v.info.thickness * v.cam.scale, 1.5, 5.0);
   for (std::size_t k = 1; k < s.blocks.size() && k < s.hinges.size(); ++k) {
     if (!(shown[k - 1] || shown[k])) continue;
-    const ladder_msg_Hinge& h = s.hinges[k];
+    const client::Hinge& h = s.hinges[k];
     const int ki = static_cast<int>(k);
     const Point p = v.screen(hinge_particle(v.info, ki, h.corner, s.blocks[k]));
     if (h.status == ladder_msg_BROKEN) {
@@ -232,7 +232,7 @@ void Camera::zoom_about(Point s, double factor) {
 
 Rgb face_colour(int block) { return block % 2 == 0 ? kFaceEven : kFaceOdd; }
 
-std::array<Point, 4> outline(const client::SceneInfo& info, const ladder_msg_Pose& pose) {
+std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose) {
   const double hw = 0.5 * info.thickness, hl = 0.5 * info.length;
   std::array<Point, 4> o = {Point{-hw, -hl}, Point{hw, -hl}, Point{hw, hl}, Point{-hw, hl}};
   for (Point& p : o) {
@@ -242,14 +242,14 @@ std::array<Point, 4> outline(const client::SceneInfo& info, const ladder_msg_Pos
   return o;
 }
 
-Point hinge_particle(const client::SceneInfo& info, int block, int c, const ladder_msg_Pose& pose) {
+Point hinge_particle(const client::SceneInfo& info, int block, int c, const client::Pose& pose) {
   const double w = (0.5 - info.hinge_inset) * info.thickness;
   const bool low = ((c & 1) == 0) == (block % 2 == 0);
   const Point r = rotate(pose.theta, {(c & 2) ? -w : w, low ? -0.5 * info.length : 0.5 * info.length});
   return {pose.x + r.x, pose.y + r.y};
 }
 
-Point to_block_frame(const ladder_msg_Pose& pose, Point world) {
+Point to_block_frame(const client::Pose& pose, Point world) {
   return rotate(-pose.theta, {world.x - pose.x, world.y - pose.y});
 }
 
@@ -301,7 +301,7 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
   if (v.length_px < 3) {
     // Level of detail: blocks of a few pixels are a line.
     draw_chain(cr, v, state.blocks);
-    for (const ladder_msg_Pose& p : state.blocks) drawn += v.visible(p);
+    for (const client::Pose& p : state.blocks) drawn += v.visible(p);
   } else {
     std::vector<char> shown(state.blocks.size());
     for (std::size_t i = 0; i < state.blocks.size(); ++i) shown[i] = v.visible(state.blocks[i]);

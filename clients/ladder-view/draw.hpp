@@ -55,9 +55,9 @@ inline constexpr Rgb kText{235, 235, 240};
 Rgb face_colour(int block);
 
 // Block geometry in world coordinates.
-std::array<Point, 4> outline(const client::SceneInfo& info, const ladder_msg_Pose& pose);  // counter-clockwise
-Point hinge_particle(const client::SceneInfo& info, int block, int c, const ladder_msg_Pose& pose);
-Point to_block_frame(const ladder_msg_Pose& pose, Point world);
+std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose);  // counter-clockwise
+Point hinge_particle(const client::SceneInfo& info, int block, int c, const client::Pose& pose);
+Point to_block_frame(const client::Pose& pose, Point world);
 // The block whose rectangle contains the world point (the highest-numbered one where two overlap), or -1.
 // Scans every block, O(blocks): about 0.1 ms for 100 000, once per click.
 int block_at(const client::SceneInfo& info, const client::State& state, Point world);

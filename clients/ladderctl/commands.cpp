@@ -85,7 +85,7 @@ int send(Client& client, const Connection& c, const ladder_msg_Command& command)
   return ack->accepted ? kAccepted : kRefused;
 }
 
-std::string hinge_text(const ladder_msg_Hinge& h) {
+std::string hinge_text(const client::Hinge& h) {
   return h.status == ladder_msg_BROKEN ? "broken" : h.status == ladder_msg_LOCKED ? "locked" : "hinged";
 }
 

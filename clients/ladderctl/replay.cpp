@@ -55,12 +55,17 @@ class Publisher {
 
   void state(const ladderlcm::state_t& s) {
     const auto n = static_cast<std::size_t>(s.num_blocks);
-    poses_.resize(n);
-    hinges_.resize(n);
+    poses_.resize(3 * n);
+    corner_.resize(n);
+    status_.resize(n);
+    flips_.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      poses_[i] = {s.x[i], s.y[i], s.theta[i]};
-      hinges_[i] = {static_cast<std::uint8_t>(s.corner[i]), static_cast<ladder_msg_HingeStatus>(s.status[i]),
-                    static_cast<std::uint32_t>(s.flips[i])};
+      poses_[3 * i] = s.x[i];
+      poses_[3 * i + 1] = s.y[i];
+      poses_[3 * i + 2] = s.theta[i];
+      corner_[i] = static_cast<std::uint8_t>(s.corner[i]);
+      status_[i] = static_cast<ladder_msg_HingeStatus>(s.status[i]);
+      flips_[i] = static_cast<std::uint32_t>(s.flips[i]);
     }
     ladder_msg_State m{};
     copy_text(m.sim_id, sim_id_);
@@ -71,8 +76,10 @@ class Publisher {
     m.paused = s.paused;
     m.commands_applied = static_cast<std::uint64_t>(s.commands_applied);
     m.energy = s.energy;
-    transport::lend(m.blocks, poses_);
-    transport::lend(m.hinges, hinges_);
+    transport::lend(m.poses, poses_);
+    transport::lend(m.hinge_corner, corner_);
+    transport::lend(m.hinge_status, status_);
+    transport::lend(m.hinge_flips, flips_);
     state_w_.write(m);
   }
 
@@ -95,8 +102,10 @@ class Publisher {
   transport::Writer<ladder_msg_SceneInfo> scene_w_;
   transport::Writer<ladder_msg_State> state_w_;
   transport::Writer<ladder_msg_Event> event_w_;
-  std::vector<ladder_msg_Pose> poses_;
-  std::vector<ladder_msg_Hinge> hinges_;
+  std::vector<double> poses_;  // x, y, theta per block
+  std::vector<std::uint8_t> corner_;
+  std::vector<ladder_msg_HingeStatus> status_;
+  std::vector<std::uint32_t> flips_;
   std::uint64_t seq_ = 0;
 };
 

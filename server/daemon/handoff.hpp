@@ -15,8 +15,10 @@ struct StateFrame {
   std::uint64_t step = 0, commands_applied = 0;
   double t = 0, energy = 0;
   bool paused = false;
-  std::vector<ladder_msg_Pose> blocks;
-  std::vector<ladder_msg_Hinge> hinges;
+  std::vector<double> poses;  // x, y, theta per block
+  std::vector<std::uint8_t> hinge_corner;
+  std::vector<ladder_msg_HingeStatus> hinge_status;
+  std::vector<std::uint32_t> hinge_flips;
   std::vector<ladder_msg_Grip> grips;
 };
 

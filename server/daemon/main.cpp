@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");
   app.add_flag("--quiet", quiet, "no progress lines (offline)");
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
-  app.set_version_flag("--version", "ladderd 0.2.0");
+  app.set_version_flag("--version", "ladderd 0.3.0");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -38,7 +38,7 @@ using Clock = std::chrono::steady_clock;
 using transport::copy_text;
 using transport::text_of;
 
-constexpr const char* kVersion = "ladderd 0.2.0";
+constexpr const char* kVersion = "ladderd 0.3.0";
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -138,18 +138,22 @@ void fill_frame(const Session& s, std::uint64_t commands_applied, StateFrame& f)
   f.commands_applied = commands_applied;
   f.energy = l.energy();
   const auto n = static_cast<std::size_t>(l.blocks());
-  f.blocks.resize(n);
-  f.hinges.resize(n);
+  f.poses.resize(3 * n);
+  f.hinge_corner.resize(n);
+  f.hinge_status.resize(n);
+  f.hinge_flips.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const int b = static_cast<int>(i);
     const core::Vec2 c = l.block_centre(b);
-    f.blocks[i] = {c.x(), c.y(), l.block_angle(b)};
+    f.poses[3 * i] = c.x();
+    f.poses[3 * i + 1] = c.y();
+    f.poses[3 * i + 2] = l.block_angle(b);
     const model::HingeInfo& h = l.hinges()[i];
-    f.hinges[i] = {static_cast<std::uint8_t>(h.corner),
-                   h.status == model::HingeStatus::Hinged   ? ladder_msg_HINGED
-                   : h.status == model::HingeStatus::Locked ? ladder_msg_LOCKED
-                                                            : ladder_msg_BROKEN,
-                   static_cast<std::uint32_t>(h.flips)};
+    f.hinge_corner[i] = static_cast<std::uint8_t>(h.corner);
+    f.hinge_status[i] = h.status == model::HingeStatus::Hinged   ? ladder_msg_HINGED
+                        : h.status == model::HingeStatus::Locked ? ladder_msg_LOCKED
+                                                                 : ladder_msg_BROKEN;
+    f.hinge_flips[i] = static_cast<std::uint32_t>(h.flips);
   }
   f.grips.clear();
   for (const model::Ladder::Grip& g : l.grips())
@@ -586,8 +590,10 @@ void Io::write_state() {
   m.commands_applied = f->commands_applied;
   m.energy = f->energy;
   // Borrowed buffers: DDS serialises them in write() and must not free them.
-  transport::lend(m.blocks, f->blocks);
-  transport::lend(m.hinges, f->hinges);
+  transport::lend(m.poses, f->poses);
+  transport::lend(m.hinge_corner, f->hinge_corner);
+  transport::lend(m.hinge_status, f->hinge_status);
+  transport::lend(m.hinge_flips, f->hinge_flips);
   transport::lend(m.grips, f->grips);
   state_w_.write(m);
   sh_.states_published.fetch_add(1, std::memory_order_relaxed);
@@ -662,14 +668,14 @@ void Io::record_state(const StateFrame& f, std::uint64_t seq) {
   m.paused = f.paused;
   m.commands_applied = static_cast<std::int64_t>(f.commands_applied);
   m.energy = f.energy;
-  const std::size_t n = f.blocks.size();
+  const std::size_t n = f.hinge_corner.size();
   m.num_blocks = static_cast<std::int32_t>(n);
   m.x.resize(n), m.y.resize(n), m.theta.resize(n), m.corner.resize(n), m.status.resize(n), m.flips.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    m.x[i] = f.blocks[i].x, m.y[i] = f.blocks[i].y, m.theta[i] = f.blocks[i].theta;
-    m.corner[i] = static_cast<std::int8_t>(f.hinges[i].corner);
-    m.status[i] = static_cast<std::int8_t>(f.hinges[i].status);
-    m.flips[i] = static_cast<std::int32_t>(f.hinges[i].flips);
+    m.x[i] = f.poses[3 * i], m.y[i] = f.poses[3 * i + 1], m.theta[i] = f.poses[3 * i + 2];
+    m.corner[i] = static_cast<std::int8_t>(f.hinge_corner[i]);
+    m.status[i] = static_cast<std::int8_t>(f.hinge_status[i]);
+    m.flips[i] = static_cast<std::int32_t>(f.hinge_flips[i]);
   }
   log_->write(transport::kStateChannel, m.utime, m, true);
 }

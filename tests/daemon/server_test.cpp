@@ -84,7 +84,7 @@ class Server : public ::testing::Test {
     EXPECT_EQ(after->sim_time, before.sim_time);
     EXPECT_EQ(after->generation, before.generation);
     ASSERT_EQ(after->blocks.size(), before.blocks.size());
-    EXPECT_EQ(0, std::memcmp(after->blocks.data(), before.blocks.data(), before.blocks.size() * sizeof(ladder_msg_Pose)))
+    EXPECT_EQ(0, std::memcmp(after->blocks.data(), before.blocks.data(), before.blocks.size() * sizeof(client::Pose)))
         << "a refused command changed the blocks";
     ASSERT_EQ(after->hinges.size(), before.hinges.size());
     for (std::size_t k = 0; k < before.hinges.size(); ++k) {
@@ -390,6 +390,47 @@ TEST_F(Server, TwoSimIdsShareADomainWithoutMixing) {
   EXPECT_EQ(mine->blocks.size(), 6u);
   EXPECT_FALSE(mine->paused);
   EXPECT_EQ(c().scene_info()->blocks, 6u);
+}
+
+// A client drops a State whose sequences disagree (a broken or hostile publisher: five numbers for two poses),
+// counts it, and takes the next good one.
+TEST(ClientLibrary, DropsAStateWhoseSequencesDisagree) {
+  const int domain = domain_for(test_name());
+  const std::string id = "hostile-" + std::to_string(getpid());
+  Client c(domain, id, "test");
+  const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain));
+  const transport::Topics topics(participant);
+  const transport::Writer<ladder_msg_State> w(participant, topics.state, transport::Profile::State);
+  const std::vector<double> poses{0.1, 0.2, 0.3, 0.4, 0.5, 0.6}, short_poses{0.1, 0.2, 0.3, 0.4, 0.5};
+  const std::vector<std::uint8_t> corner{0, 1};
+  const std::vector<ladder_msg_HingeStatus> status{ladder_msg_HINGED, ladder_msg_LOCKED};
+  const std::vector<std::uint32_t> flips{0, 3};
+  const auto publish = [&](std::uint64_t seq, const std::vector<double>& p) {
+    ladder_msg_State m{};
+    transport::copy_text(m.sim_id, id);
+    m.seq = seq;
+    transport::lend(m.poses, p);
+    transport::lend(m.hinge_corner, corner);
+    transport::lend(m.hinge_status, status);
+    transport::lend(m.hinge_flips, flips);
+    w.write(m);
+  };
+  publish(1, short_poses);
+  const auto deadline = Clock::now() + kAnswer;
+  while (c.states_malformed() == 0 && Clock::now() < deadline)
+    c.wait_state([](const client::State&) { return true; }, Millis(20));
+  EXPECT_EQ(c.states_malformed(), 1u);
+  EXPECT_FALSE(c.latest_state().has_value()) << "the malformed state was taken";
+  publish(2, poses);
+  const auto s = c.wait_state([](const client::State& st) { return st.seq == 2; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  ASSERT_EQ(s->blocks.size(), 2u);
+  EXPECT_EQ(s->blocks[1].y, 0.5);
+  EXPECT_EQ(s->blocks[1].theta, 0.6);
+  EXPECT_EQ(s->hinges[1].corner, 1);
+  EXPECT_EQ(s->hinges[1].status, ladder_msg_LOCKED);
+  EXPECT_EQ(s->hinges[1].flips, 3u);
+  EXPECT_EQ(c.states_malformed(), 1u);
 }
 
 }  // namespace
