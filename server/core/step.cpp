@@ -221,13 +221,24 @@ void World::kick_drift(double h_kick, double h) {
   mark_state_changed();
 }
 
-void World::step(double h, bool adaptive) {
+void World::step(double h, bool adaptive, Snapshot* before) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step: the time step must be a positive number");
   ensure_built();
-  if (options_.adaptive && adaptive)
+  const bool whole = options_.adaptive && adaptive;
+  // One reduced step leaves the state it started from in other_state_; anything else needs a copy first.
+  const bool swapped = before && !whole && options_.integrator == Integrator::Reduced && reduced_applies();
+  if (before) {
+    if (!swapped) before->bodies = state_;
+    before->forces = forces_;
+    before->t = t_;
+    before->structure = structure_;
+    before->adaptive_h = adaptive_h_;
+  }
+  if (whole)
     step_adaptive(h);
   else
     step_fixed(h);
+  if (swapped) before->bodies.swap(other_state_);
 }
 
 namespace {
@@ -516,10 +527,13 @@ void World::step_reduced(double h) {
     factor_version_ = 0;  // only what backward() needs is kept: nothing may take system_ for a full factorisation
   }
   // Pass 2, backwards: each body's hinge forces once both its rows' are known, then its angular velocity and angle
-  // (a free chain's first body: its whole pose) by symplectic Euler.
+  // (a free chain's first body: its whole pose) by symplectic Euler. The new state goes to the other buffer, which
+  // then changes places with state_: the state before the step is kept without a copy (step()'s `before`).
+  other_state_.resize(state_.size());
   const auto advance = [&](int i, Vec2 f, double tau, bool whole) HOT_INLINE {
     const Body& body = bodies_[i];
-    BodyState& s = state_[i];
+    const BodyState& o = state_[i];
+    BodyState& s = other_state_[i];
     if (!(undamped && body.single_part)) {
       Vec2 f0;
       double tau0;
@@ -527,13 +541,13 @@ void World::step_reduced(double h) {
       f += f0;
       tau += tau0;
     }
-    s.w += h * body.inv_inertia * tau;
+    s.w = o.w + h * body.inv_inertia * tau;
     const double dth = h * s.w;
-    s.th += dth;
-    s.q = (s.q * rotation_of_small_angle(dth)).renormalised();
+    s.th = o.th + dth;
+    s.q = (o.q * rotation_of_small_angle(dth)).renormalised();
     if (whole) {
-      s.v += h * (body.inv_mass * f + (undamped && body.single_part ? g : Vec2::Zero()));
-      s.x += h * s.v;
+      s.v = o.v + h * (body.inv_mass * f + (undamped && body.single_part ? g : Vec2::Zero()));
+      s.x = o.x + h * s.v;
     }
   };
   if (n > 0)
@@ -552,6 +566,8 @@ void World::step_reduced(double h) {
     if (!bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[c.first], l), !c.from_end);
   }
   for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);
+  for (const int b : kinematic_bodies_) other_state_[static_cast<size_t>(b)] = state_[static_cast<size_t>(b)];
+  state_.swap(other_state_);
   drive_kinematic(t1);  // the driven ends, where their drives are at the end
   // Pass 3: every other body where its hinge puts it, moving as its hinge moves, from each chain's first body on.
   const auto place = [&](BodyState& to, const Vec2& r_to, const BodyState& from, const Vec2& r_from) HOT_INLINE {

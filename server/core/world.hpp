@@ -196,7 +196,9 @@ class World {
 
   // --- time stepping ---
   // One step of h; with Options::adaptive (unless `adaptive` is false) as many sub-steps as its error control needs.
-  void step(double h, bool adaptive = true);
+  // With `before`, the state before the step is left there, as save() would have returned it, so that a caller can
+  // take the step back with restore(): the reduced integrator hands over the buffer it stepped from, no copy.
+  void step(double h, bool adaptive = true, Snapshot* before = nullptr);
   double time() const { return t_; }
   const StepStats& last_step() const { return stats_; }
   // The adaptive step's next trial sub-step [s] (Options::adaptive), 0 before the first.
@@ -379,6 +381,7 @@ class World {
   std::vector<std::vector<int>> body_parts_;
   std::vector<Row> rows_;
   std::vector<BodyState> state_;
+  std::vector<BodyState> other_state_;  // the reduced step writes here, then swaps: it holds the state before it
   std::vector<AppliedForce> forces_;
   double t_ = 0;
   std::uint64_t structure_ = 0;

@@ -288,13 +288,13 @@ std::string Ladder::diverged(const core::Energy& e0, double h) const {
 }
 
 void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
-  core::Snapshot saved;
-  if (!start) {
-    saved = world_.save();
-    start = &saved;
-  }
   const core::Energy e0 = world_.energy();
-  world_.step(h, !locating_);
+  if (start) {
+    world_.step(h, !locating_);
+  } else {
+    world_.step(h, !locating_, &before_);  // the world before the step, for the watchdog to take the step back
+    start = &before_;
+  }
   const std::string why = diverged(e0, h);
   if (!why.empty()) {
     world_.restore(*start);
