@@ -66,6 +66,8 @@ int main(int argc, char** argv) {
   app.add_option("--set", settings, "KEY=VALUE passed to ladderd, e.g. sim.accuracy=fast (repeatable)");
   int realtime = 0;
   app.add_option("--realtime-priority", realtime, "passed to ladderd: its physics thread's SCHED_FIFO priority");
+  int spin_us = 0;
+  app.add_option("--spin-us", spin_us, "passed to ladderd: busy-wait the last US microseconds before each tick");
   CLI11_PARSE(app, argc, argv);
 
   std::printf("| N | subscribers | ack p50 ms | ack p99 ms | late p50 us | late p99 us | late max us | missed ticks "
@@ -79,6 +81,7 @@ int main(int argc, char** argv) {
                                     "ladder.blocks=" + std::to_string(n), "--log-level", "warn"};
       for (const std::string& s : settings) args.insert(args.end(), {"--set", s});
       if (realtime > 0) args.insert(args.end(), {"--realtime-priority", std::to_string(realtime)});
+      if (spin_us > 0) args.insert(args.end(), {"--spin-us", std::to_string(spin_us)});
       ladder::test::Process server(args, "/tmp/" + sim_id + ".log");
       Client control(domain, sim_id, "control");
       if (!control.wait_for_server(Millis(60000))) {

@@ -73,6 +73,8 @@ const std::vector<Key>& keys() {
       number_key("server.real_time_factor", [](DaemonConfig& c, double v) { c.server.rates.real_time_factor = v; }),
       integer_key("server.realtime_priority", 0, 99,
                   [](DaemonConfig& c, long long v) { c.server.realtime_priority = static_cast<int>(v); }),
+      integer_key("server.spin_us", 0, 1'000'000,
+                  [](DaemonConfig& c, long long v) { c.server.spin_us = static_cast<int>(v); }),
       integer_key("commands.queue", 1, 1'000'000,
                   [](DaemonConfig& c, long long v) { c.server.queue = static_cast<std::size_t>(v); }),
       integer_key("commands.per_tick", 1, 100'000,
@@ -112,6 +114,11 @@ void check_config(const DaemonConfig& c) {
     throw ConfigError("server.real_time_factor must be from 0 (as fast as possible) to 1000", "server.real_time_factor");
   if (!(s.realtime_priority >= 0 && s.realtime_priority <= 99))
     throw ConfigError("server.realtime_priority must be from 0 (normal scheduling) to 99", "server.realtime_priority");
+  if (!(s.spin_us >= 0 && s.spin_us <= 1'000'000 / s.rates.physics))
+    throw ConfigError("server.spin_us must be from 0 to the tick period (" +
+                          std::to_string(static_cast<long long>(1'000'000 / s.rates.physics)) + " us at " +
+                          std::to_string(static_cast<long long>(s.rates.physics)) + " Hz)",
+                      "server.spin_us");
   positive(s.limits.max_impulse, 1e6, "commands.max_impulse");
   positive(s.limits.max_force, 1e9, "commands.max_force");
   positive(s.limits.max_duration, 1e9, "commands.max_duration");

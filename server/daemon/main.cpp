@@ -36,6 +36,9 @@ int main(int argc, char** argv) {
   auto* realtime = app.add_option("--realtime-priority", c.server.realtime_priority,
                                   "run the physics thread at SCHED_FIFO priority 1-99 (needs CAP_SYS_NICE); 0 = off")
                        ->check(CLI::Range(0, 99));
+  auto* spin = app.add_option("--spin-us", c.server.spin_us,
+                              "busy-wait the last US microseconds before each tick instead of sleeping: ticks start on "
+                              "time, for that much CPU; 0 = off");
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
   app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
@@ -73,6 +76,7 @@ int main(int argc, char** argv) {
     if (publish->count()) c.server.rates.publish = cli.server.rates.publish;
     if (rtf->count()) c.server.rates.real_time_factor = cli.server.rates.real_time_factor;
     if (realtime->count()) c.server.realtime_priority = cli.server.realtime_priority;
+    if (spin->count()) c.server.spin_us = cli.server.spin_us;
     if (level->count()) c.log_level = cli.log_level;
     if (log_file->count()) c.log_file = cli.log_file;
     if (!o.scene.empty()) c.scene = o.scene;

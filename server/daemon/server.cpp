@@ -299,15 +299,24 @@ void Physics::take_commands() {
 
 // Waits for the next tick's deadline. A command that arrives meanwhile is applied at once: the simulation already
 // stands where the next tick starts, so it takes effect at the same sim time as it would then, and its ack goes
-// out without waiting for the deadline.
+// out without waiting for the deadline. The last server.spin_us before the deadline are busy-waited.
 void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& stop) {
+  const auto halted = [&] { return stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed); };
+  const auto ready = [&] { return (!sh_.inbox.empty() && taken_ < sh_.config.per_tick) || halted(); };
+  const auto wake = deadline - std::chrono::microseconds(sh_.config.spin_us);
   std::unique_lock lock(sh_.inbox_mutex);
-  const auto ready = [&] {
-    return (!sh_.inbox.empty() && taken_ < sh_.config.per_tick) || stop.load(std::memory_order_relaxed) ||
-           sh_.abort.load(std::memory_order_relaxed);
-  };
-  while (sh_.inbox_cv.wait_until(lock, deadline, ready)) {
-    if (stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed)) return;
+  while (true) {
+    if (Clock::now() < wake) {
+      if (!sh_.inbox_cv.wait_until(lock, wake, ready)) continue;
+    } else if (Clock::now() >= deadline) {
+      return;
+    } else if (!ready()) {
+      lock.unlock();
+      std::this_thread::yield();  // lets a thread of the same priority run; costs no sleep
+      lock.lock();
+      continue;
+    }
+    if (halted()) return;
     lock.unlock();
     take_commands();
     lock.lock();
@@ -732,6 +741,7 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
                "factor {}",
                scene.name, config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,
                config.rates.publish, config.rates.real_time_factor);
+  if (config.spin_us > 0) spdlog::info("the physics thread busy-waits the last {} us before each tick", config.spin_us);
   std::exception_ptr physics_error;
   std::thread physics_thread([&] {
     if (realtime) run_realtime("physics", config.realtime_priority);

@@ -26,6 +26,10 @@ struct ServerConfig {
   // SCHED_FIFO priority of the physics thread, 1 to 99; 0 = the normal scheduler. Needs CAP_SYS_NICE (or root): when
   // refused, the server logs a warning and runs with normal scheduling.
   int realtime_priority = 0;
+  // The physics thread busy-waits the last spin_us microseconds before each tick's deadline instead of sleeping
+  // through them, so that a tick starts on time rather than when the timer wakes the thread (tens of microseconds
+  // late); it costs that much CPU per tick. 0 = sleep all the way.
+  int spin_us = 0;
 };
 
 // Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws

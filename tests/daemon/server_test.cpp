@@ -58,6 +58,10 @@ class Server : public ::testing::Test {
 
   Client& c() { return *client_; }
 
+  // Starts the server with commands.per_tick = 1 (and `extra`), sends a burst of 20 commands and checks that each is
+  // accepted at a step of its own, in the order sent.
+  void burst_with_one_command_per_tick(std::vector<std::string> extra = {});
+
   // Pauses and returns the paused state.
   client::State pause() {
     const client::Ack a = c().call(cmd::pause(), kAnswer);
@@ -304,10 +308,20 @@ TEST_F(Server, TenThousandCommandsInABurstAreAllAnswered) {
 
 // commands.per_tick holds also for the commands the server applies between ticks, as they arrive: with a cap of 1,
 // a burst is applied one command per step, in the order sent.
-TEST_F(Server, PerTickCapHoldsBetweenTicks) {
+TEST_F(Server, PerTickCapHoldsBetweenTicks) { burst_with_one_command_per_tick(); }
+
+// With --spin-us the physics thread busy-waits before each tick; commands that arrive then are applied as they come,
+// one tick's worth at a time. Here it spins through the whole tick.
+TEST_F(Server, SpinningPhysicsThreadTakesCommandsAsTheyCome) {
+  burst_with_one_command_per_tick({"--spin-us", "1000"});
+  EXPECT_NE(server_->log().find("busy-waits the last 1000 us before each tick"), std::string::npos) << server_->log();
+}
+
+void Server::burst_with_one_command_per_tick(std::vector<std::string> extra) {
   const std::string config = std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".toml";
   std::ofstream(config) << "[commands]\nper_tick = 1\n";
-  start({"--config", config});
+  extra.insert(extra.end(), {"--config", config});
+  start(extra);
   constexpr int kBurst = 20;
   std::vector<std::uint64_t> ids;
   for (int i = 0; i < kBurst; ++i) ids.push_back(c().send(cmd::set("damping.hinge=0")));
