@@ -348,7 +348,9 @@ class Viewer {
     if (mode_ == Mode::Press) {
       // A click pokes the block at that point, away from the side it was clicked on.
       const client::State* s = feed_.state();
-      const double dir = s && press_world_.x > s->blocks[block_].x ? -1 : 1;
+      // (the ladder may have been replaced by a smaller one since the press: then the block is gone)
+      const bool known = s && static_cast<std::size_t>(block_) < s->blocks.size();
+      const double dir = known && press_world_.x > s->blocks[static_cast<std::size_t>(block_)].x ? -1 : 1;
       send(cmd::poke_at(block_, dir * kPokeImpulse, 0, press_world_.x, press_world_.y),
            "poke block " + std::to_string(block_));
     } else if (mode_ == Mode::Grab) {

@@ -8,6 +8,7 @@
 #include "transport/lcm_log.hpp"
 #include "transport/topics.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -53,7 +54,9 @@ class Publisher {
     scene_w_.write(m);
   }
 
-  void state(const ladderlcm::state_t& s) {
+  // Publishes a recorded state; false (nothing published) if a hinge status is not one the message can carry.
+  bool state(const ladderlcm::state_t& s) {
+    if (!std::all_of(s.status.begin(), s.status.end(), [](std::int8_t v) { return v >= 0 && v <= 2; })) return false;
     const auto n = static_cast<std::size_t>(s.num_blocks);
     poses_.resize(3 * n);
     corner_.resize(n);
@@ -81,6 +84,7 @@ class Publisher {
     transport::lend(m.hinge_status, status_);
     transport::lend(m.hinge_flips, flips_);
     state_w_.write(m);
+    return true;
   }
 
   void event(const ladderlcm::event_t& e) {
@@ -129,7 +133,7 @@ int replay(const ReplayOptions& o) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point start = Clock::now();
   std::int64_t first_utime = -1;
-  std::uint64_t states = 0, events = 0;
+  std::uint64_t states = 0, events = 0, bad_states = 0;
   double last_t = 0;
   try {
     while (!g_stop) {
@@ -150,7 +154,10 @@ int replay(const ReplayOptions& o) {
         const auto s = reader->decode<ladderlcm::state_t>(*e);
         if (s.sim_time + 1e-9 < o.from) continue;
         wait_for(e->utime);
-        out.state(s);
+        if (!out.state(s)) {
+          ++bad_states;
+          continue;
+        }
         ++states;
         last_t = s.sim_time;
       } else if (e->channel == transport::kEventChannel) {
@@ -166,6 +173,9 @@ int replay(const ReplayOptions& o) {
   }
   sigaction(SIGINT, &old, nullptr);
   if (!reader->damage().empty()) std::cerr << "ladderctl: " << o.log << ": " << reader->damage() << "\n";
+  if (bad_states)
+    std::cerr << "ladderctl: " << o.log << ": skipped " << bad_states
+              << " state(s) with a hinge status other than 0, 1 or 2 (hinged, locked, broken)\n";
   std::printf("replayed %llu states and %llu events, up to t = %.3f s\n", static_cast<unsigned long long>(states),
               static_cast<unsigned long long>(events), last_t);
   // Transient-local data lives as long as its writer: give late viewers a moment to take the last state.

@@ -219,6 +219,7 @@ class Physics {
   std::vector<double> step_us_, late_us_;
   std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;
   std::size_t taken_ = 0;  // commands taken since the last tick's step (at most commands.per_tick)
+  const char* taking_ = "";  // where take_commands() is called from, for the debug log
   double sim_at_last_stats_ = 0;
   Clock::time_point last_stats_{}, last_publish_{};
   std::uint32_t scene_generation_ = 0;
@@ -253,7 +254,8 @@ void Physics::take_commands() {
   if (batch.empty()) return;
   taken_ += batch.size();
   dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
-  // One deterministic order for commands that arrive together, whatever the network did: client, then id.
+  // One deterministic order for the commands taken together (those that arrived during a step, or queued while
+  // spinning): client, then id. A command that arrives while the thread waits is taken on its own, as it comes.
   std::stable_sort(batch.begin(), batch.end(), [](const ladder_msg_Command& a, const ladder_msg_Command& b) {
     const int c = std::strncmp(a.client_id, b.client_id, sizeof a.client_id);
     return c < 0 || (c == 0 && a.command_id < b.command_id);
@@ -274,7 +276,8 @@ void Physics::take_commands() {
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
     if (r.accepted)
-      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s", to_string(c.kind), c.command_id, text_of(c.client_id), t);
+      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s{}", to_string(c.kind), c.command_id, text_of(c.client_id), t,
+                    taking_);
     else
       spdlog::info("{} {} from {}: refused: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
     // SceneInfo carries the live settings and the rates: published again when they change.
@@ -318,7 +321,9 @@ void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& st
     }
     if (halted()) return;
     lock.unlock();
+    taking_ = Clock::now() < wake ? ", between ticks" : ", while spinning before the tick";
     take_commands();
+    taking_ = "";
     lock.lock();
   }
 }
@@ -755,7 +760,11 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   try {
     io.run();
   } catch (...) {
-    shared.abort = true;  // a DDS failure on the I/O side: stop the physics thread before unwinding
+    {
+      std::lock_guard lock(shared.inbox_mutex);  // a DDS failure on the I/O side: stop the physics thread (waking it)
+      shared.abort = true;                       // before unwinding
+    }
+    shared.inbox_cv.notify_all();
     physics_thread.join();
     throw;
   }

@@ -142,7 +142,7 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{scene + " --domain 999", "--domain"},
                         Case{scene + " --realtime-priority 100", "--realtime-priority"},
                         Case{scene + " --rate 500 --spin-us 5000",
-                             "server.spin_us must be from 0 to the tick period (2000 us at 500 Hz)"}}) {
+                             "server.spin_us must be from 0 to half the tick period (1000 us at 500 Hz)"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
@@ -158,7 +158,7 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[commands]\nqueue = 0\n", ":2:9: commands.queue must be from 1 to 1000000"},
                         Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
-                        Case{"[server]\nspin_us = 2000\n", ":2:11: server.spin_us must be from 0 to the tick period (1000 us"},
+                        Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
                         Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be > 0 and at most"},
                         Case{"[server\n", ":1:8: "}}) {
     std::ofstream(path("ladderd.toml")) << c.text;

@@ -184,6 +184,36 @@ TEST_F(Record, ReplayRepublishesTheRecordedStates) {
   }
 }
 
+// A log is untrusted input: a state whose hinge status is none the message can carry (7) is skipped and counted,
+// and the replay goes on and ends normally.
+TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
+  start({"--record", log_});
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  transport::LogReader in(log_);
+  const std::string bent = (dir_ / "bent.lcmlog").string();
+  std::size_t states = 0;
+  {
+    transport::LogWriter out(bent);
+    while (auto e = in.next()) {
+      if (e->channel == transport::kStateChannel && ++states == 5) {
+        auto s = in.decode<ladderlcm::state_t>(*e);
+        s.status[2] = 7;
+        out.write(transport::kStateChannel, e->utime, s, false);
+        continue;
+      }
+      out.write_bytes(e->channel, e->utime, e->data, false);
+    }
+  }
+  ASSERT_GT(states, 5u);
+  const Result r = shell(kLadderctl + " replay " + bent + " --speed 0 --as " + sim_id_ + "-replay --domain " +
+                         std::to_string(domain_));
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("skipped 1 state(s) with a hinge status other than 0, 1 or 2"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("replayed " + std::to_string(states - 1) + " states"), std::string::npos) << r.output;
+}
+
 // A recorded session replayed to a real ladder-view draws the same picture as the live server did at the same
 // sim time (pixel for pixel below the heading line, which names the sim id).
 TEST_F(Record, ReplayDrawsWhatTheLiveServerDrew) {
