@@ -292,8 +292,9 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
   if (start) {
     world_.step(h, !locating_);
   } else {
-    world_.step(h, !locating_, &before_);  // the world before the step, for the watchdog to take the step back
-    start = &before_;
+    core::Snapshot& before = before_[static_cast<std::size_t>(depth)];
+    world_.step(h, !locating_, &before);  // the world before the step, for the watchdog to take the step back
+    start = &before;
   }
   const std::string why = diverged(e0, h);
   if (!why.empty()) {
@@ -344,9 +345,9 @@ void Ladder::advance_by(double h) {
   double remaining = h;
   std::vector<double> s0, s1;
   for (int guard = 0; remaining > 0; ++guard) {
-    const core::Snapshot start = world_.save();
     violations_at_start(s0);
-    step_guarded(remaining, 0, &start);
+    step_guarded(remaining, 0);
+    const core::Snapshot& start = before_[0];  // the world before the step, for event location
     bool clamped = false;
     if (!any_violation(s1, &clamped)) {
       s_cache_.swap(s1);
@@ -410,7 +411,7 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
       tau = (lo * ghi - top * glo) / (ghi - glo);
       if (!(tau > lo && tau < top)) tau = 0.5 * (lo + top);
       world_.restore(start);
-      step_guarded(tau * h, 0);
+      step_guarded(tau * h, 0, &start);
       const double g = hinge_measure(k) - target;
       if (std::abs(g) <= band) {
         found = true;
@@ -430,7 +431,7 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
     if (!found) {  // the bracket collapsed: take its end just past the boundary
       tau = top;
       world_.restore(start);
-      if (tau > 0) step_guarded(tau * h, 0);
+      if (tau > 0) step_guarded(tau * h, 0, &start);
     } else if (tau == 0) {
       world_.restore(start);
     }

@@ -179,7 +179,9 @@ class Ladder {
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
   bool locating_ = false;  // in locate(): its trial steps are single steps (see advance())
-  core::Snapshot before_;  // step_guarded()'s world before its step, reused: no allocation per step
+  // step_guarded()'s world before its step, one per depth of halving (0 to 6), reused: no allocation per step. The
+  // outermost is also the start that advance_by() locates events from.
+  std::array<core::Snapshot, 7> before_;
   double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
   std::vector<Grip> grips_;  // sorted by block
   // Each block's lengthwise unit vector in its own frame, from corner 0 to 1 and from corner 2 to 3 (from c ^ 1 to c
