@@ -22,9 +22,10 @@ int find_root(std::vector<int>& parent, int i) {
 
 World::World(const Options& options) : options_(options) {}
 
+// No option enters K = G M^-1 G^T, so its factorisation stays valid: a setting that changes nothing leaves the next
+// step exactly as it would have been.
 void World::set_options(const Options& options) {
   options_ = options;
-  factor_version_ = 0;
   mark_motion_changed();  // gravity may have changed: so has the potential energy
 }
 

@@ -180,8 +180,9 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
 void Ladder::set_options(const core::Options& options) {
   world_.set_options(options);
   // A flip-flop may happen once |s| is below this; the far corners are then within ~tolerance of each other.
-  s_detect_ = 2 * std::max(options.tolerance, 1e-15) / spec_.length;
-  s_cache_valid_ = false;
+  const double s_detect = 2 * std::max(options.tolerance, 1e-15) / spec_.length;
+  if (s_detect != s_detect_) s_cache_valid_ = false;  // the last measure's violations were judged against the old
+  s_detect_ = s_detect;
 }
 
 bool Ladder::held() const { return spec_.top == Top::Held && world_.is_kinematic(0); }
