@@ -94,7 +94,6 @@ ladder_msg_Command command_of(const ladderlcm::command_t& m) {
   return c;
 }
 
-
 SessionLog read_session_log(const std::string& path) {
   transport::LogReader reader(path);
   SessionLog log;

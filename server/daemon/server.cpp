@@ -309,9 +309,11 @@ void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& st
   const auto wake = deadline - std::chrono::microseconds(sh_.config.spin_us);
   std::unique_lock lock(sh_.inbox_mutex);
   while (true) {
-    if (Clock::now() < wake) {
+    const auto now = Clock::now();
+    const bool sleeping = now < wake;  // else spinning
+    if (sleeping) {
       if (!sh_.inbox_cv.wait_until(lock, wake, ready)) continue;
-    } else if (Clock::now() >= deadline) {
+    } else if (now >= deadline) {
       return;
     } else if (!ready()) {
       lock.unlock();
@@ -321,7 +323,7 @@ void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& st
     }
     if (halted()) return;
     lock.unlock();
-    taking_ = Clock::now() < wake ? ", between ticks" : ", while spinning before the tick";
+    taking_ = sleeping ? ", between ticks" : ", while spinning before the tick";
     take_commands();
     taking_ = "";
     lock.lock();
