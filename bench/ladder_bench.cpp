@@ -9,6 +9,9 @@
 //  - Ladder: the toy held at the top, hanging at rest, tipped at t = 0: the ripple, with Algorithm 1 and event
 //    location on (N <= 1000).
 //  - LadderNoLogic: the same ladder with Algorithm 1 off (what the flip/lock logic costs).
+//  - LadderHeld: the server's default ladder (damped) hanging at rest in the hand, N = 10 000 and 100 000: what
+//    ladderd's loop costs between interventions. LadderTipped...: the 10 000-block ladder tipped, with the two
+//    integrators that run it at 1 ms.
 //  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
 //    projection integrator on a hanging chain too stiff for SHAKE at 1 ms.
 // Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the largest hinge error after the run [m]
@@ -87,13 +90,15 @@ void ChainHangingFast(benchmark::State& state) {
 }
 // A hanging chain too stiff for SHAKE at 1 ms (N = 10 000: its top link is a pendulum in 10 000 g), with the
 // projection integrator, which runs it (docs/tradeoff.md).
-void ChainHangingProjection(benchmark::State& state) {
-  auto l = chain(static_cast<int>(state.range(0)), true);
-  core::Options o = l->world().options();
+core::Options projection(core::Options o) {
   o.integrator = core::Integrator::Projection;
   o.stabilization = core::Stabilization::None;
   o.tolerance = 1e-6;
-  l->set_options(o);
+  return o;
+}
+void ChainHangingProjection(benchmark::State& state) {
+  auto l = chain(static_cast<int>(state.range(0)), true);
+  l->set_options(projection(l->world().options()));
   run(state, std::move(l), false);
 }
 void LadderFast(benchmark::State& state) { run(state, ladder(static_cast<int>(state.range(0)), true, true), true); }
@@ -118,6 +123,34 @@ void LadderReduced(benchmark::State& state) {
   run(state, std::move(l), true);
 }
 
+// The ladder as ladderd holds it between interventions, at N = 10 000 and 100 000: the server's default scene
+// (config/scenes/classic.toml's blocks and damping of 0.1 /s) hanging at rest in the hand, Algorithm 1 on, with
+// the default settings and with `reduced`. Nothing moves, so Newton converges at once: the floor of a step's cost.
+std::unique_ptr<model::Ladder> held_ladder(int n, bool reduced_integrator) {
+  model::LadderSpec spec;
+  spec.blocks = n;
+  core::Options o;
+  o.linear_damping = o.angular_damping = 0.1;
+  if (reduced_integrator) o = reduced(o);
+  return std::make_unique<model::Ladder>(spec, o);
+}
+void LadderHeld(benchmark::State& state) { run(state, held_ladder(static_cast<int>(state.range(0)), false), false); }
+void LadderHeldReduced(benchmark::State& state) {
+  run(state, held_ladder(static_cast<int>(state.range(0)), true), false);
+}
+// The same ladder of 10 000 blocks tipped at t = 0 (0.2 s of the tip). With the defaults the tip stops the
+// simulation within 40 ms: the hinge solve fails even at 1/64 of the step, with the chain's 2 450 N weight on the
+// top hinge (docs/benchmarks.md). The projection integrator (to 1e-6 m, as ChainHangingProjection) and `reduced`
+// (whose watchdog redoes many steps in halves) run it.
+void LadderTippedProjection(benchmark::State& state) {
+  auto l = held_ladder(static_cast<int>(state.range(0)), false);
+  l->set_options(projection(l->world().options()));
+  run(state, std::move(l), true);
+}
+void LadderTippedReduced(benchmark::State& state) {
+  run(state, held_ladder(static_cast<int>(state.range(0)), true), true);
+}
+
 // A fixed number of steps per size (the same early motion at every size): 1.5 s of simulated time up to
 // N = 1000, 0.2 s at 10 000 and 0.03 s at 100 000.
 BENCHMARK(ChainZeroG)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
@@ -139,6 +172,12 @@ BENCHMARK(ChainZeroGReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMill
 BENCHMARK(ChainZeroGReduced)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(ChainHangingReduced)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderReduced)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeld)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeld)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldReduced)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTippedProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTippedReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
