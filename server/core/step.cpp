@@ -496,11 +496,17 @@ void World::step_reduced(double h) {
   const bool undamped = !general && options_.linear_damping == 0 && options_.angular_damping == 0;
   const Vec2 g = options_.gravity;
   if (general) accumulate_forces(force_, torque_, h);
+  const double cl = options_.linear_damping, ca = options_.angular_damping;
   const auto free_force = [&](int i, Vec2& f, double& tau) HOT_INLINE {
-    if (general)
+    const Body& body = bodies_[i];
+    if (general) {
       f = force_[i], tau = torque_[i];
-    else
+    } else if (body.single_part) {  // body_force()'s common case, inline
+      f = body.mass * (g - cl * state_[i].v);
+      tau = -ca * body.inertia * state_[i].w;
+    } else {
       body_force(i, f, tau);
+    }
   };
   // A body's acceleration at anchor u without the hinges (a driven body's: its drive's).
   const auto free_acceleration = [&](int i, const Vec2& u) HOT_INLINE {

@@ -56,6 +56,7 @@ int World::add_part(const PartDef& def) {
   // A new part starts as its own body whose frame is the part frame.
   part.body = static_cast<int>(bodies_.size());
   parts_.push_back(part);
+  part_frames_.push_back({part.rel_q, part.body});
   Body body;
   body.mass = mass;
   body.inertia = part.inertia;
@@ -257,6 +258,7 @@ void World::set_body_from_parts(int b, const std::vector<int>& parts, const std:
       // back to unit length so that repeated merges and splits cannot make bodies grow.
       p.rel_q = (s.q.inverse() * motion[i].q).renormalised();
     }
+    part_frames_[static_cast<size_t>(i)] = {p.rel_q, p.body};
   }
 }
 

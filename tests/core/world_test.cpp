@@ -226,6 +226,36 @@ TEST(World, FlipOfAFoldedPairConservesMomentum) {
   EXPECT_LT((va - vb).norm(), 1e-12);  // the new hinge's particles now move together
 }
 
+// part_rotation() and part_omega() (what Algorithm 1 reads for every block) follow each part into and out of a weld:
+// the turn of the line between two of its particles since the start, and their relative velocity.
+TEST_F(Restructuring, PartRotationAndSpinFollowEachPartThroughAWeld) {
+  std::vector<Vec2> d0;
+  std::vector<Rot> q0;
+  for (int part : parts) {
+    d0.push_back(world.particle_position(world.first_particle(part) + 1) - world.particle_position(world.first_particle(part)));
+    q0.push_back(world.part_rotation(part));
+  }
+  const auto check = [&] {
+    for (size_t i = 0; i < parts.size(); ++i) {
+      const int first = world.first_particle(parts[i]);
+      const Vec2 d = world.particle_position(first + 1) - world.particle_position(first);
+      const Vec2 dv = world.particle_velocity(first + 1) - world.particle_velocity(first);
+      const Rot turned = Rot::of(std::atan2(cross(d0[i], d), d0[i].dot(d))) * q0[i];
+      const Rot q = world.part_rotation(parts[i]);
+      EXPECT_NEAR(q.c, turned.c, 1e-12) << "part " << i;
+      EXPECT_NEAR(q.s, turned.s, 1e-12) << "part " << i;
+      EXPECT_NEAR(world.part_omega(parts[i]), cross(d, dv) / d.squaredNorm(), 1e-9) << "part " << i;
+    }
+  };
+  world.combine(p(0, 0), p(1, 1));  // lock: blocks 0 and 1 are one body, each part turned in it
+  ASSERT_EQ(world.body_count(), 2);
+  for (int i = 0; i < 50; ++i) world.step(1e-3);
+  check();
+  world.separate(p(0, 0), p(1, 1));  // unlock
+  for (int i = 0; i < 50; ++i) world.step(1e-3);
+  check();
+}
+
 TEST_F(Restructuring, RoundTripsRestoreTheModel) {
   for (int i = 0; i < 20; ++i) world.step(1e-3);
   const int bodies = world.body_count();
