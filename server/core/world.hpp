@@ -232,6 +232,13 @@ class World {
   Vec2 particle_velocity(int p) const;
   Vec2 part_position(int part) const;  // centre of mass
   double part_angle(int part) const;   // unwrapped [rad]
+  // Both at once, inline (the server exports every block's 60 times a second): the same bits as part_motion().
+  void part_pose(int part, Vec2& x, double& th) const {
+    const Part& p = parts_[static_cast<size_t>(part)];
+    const BodyState& s = state_[static_cast<size_t>(p.body)];
+    x = s.x + s.q * p.rel_x;
+    th = s.th + p.rel_th;
+  }
   // Inline: Algorithm 1 measures every hinge from its two blocks' rotations after every step.
   Rot part_rotation(int part) const {
     const PartFrame& p = part_frames_[static_cast<size_t>(part)];

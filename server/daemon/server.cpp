@@ -143,11 +143,10 @@ void fill_frame(const Session& s, std::uint64_t commands_applied, StateFrame& f)
   f.hinge_status.resize(n);
   f.hinge_flips.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const int b = static_cast<int>(i);
-    const core::Vec2 c = l.block_centre(b);
+    core::Vec2 c;
+    l.block_pose(static_cast<int>(i), c, f.poses[3 * i + 2]);
     f.poses[3 * i] = c.x();
     f.poses[3 * i + 1] = c.y();
-    f.poses[3 * i + 2] = l.block_angle(b);
     const model::HingeInfo& h = l.hinges()[i];
     f.hinge_corner[i] = static_cast<std::uint8_t>(h.corner);
     f.hinge_status[i] = h.status == model::HingeStatus::Hinged   ? ladder_msg_HINGED

@@ -137,6 +137,7 @@ class Ladder {
   double time() const { return world_.time(); }
   Vec2 block_centre(int i) const { return world_.part_position(i); }
   double block_angle(int i) const { return world_.part_angle(i); }
+  void block_pose(int i, Vec2& centre, double& angle) const { world_.part_pose(i, centre, angle); }
   Vec2 lengthwise(int i) const;  // unit vector from corner 0 to corner 1
   Vec2 corner(int block, int c) const { return world_.particle_position(particle(block, c)); }
   const std::vector<HingeInfo>& hinges() const { return hinges_; }
