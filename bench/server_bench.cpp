@@ -9,6 +9,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <memory>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -48,9 +52,70 @@ Delivery subscribe(int domain, const std::string& sim_id, double seconds) {
   return d;
 }
 
+// The subscriber's figures as a file: "states gaps" on the first line, then one latency [ms] per line.
+void write_delivery(const Delivery& d, const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) return;
+  std::fprintf(f, "%zu %zu\n", d.states, d.gaps);
+  for (double l : d.latency_ms) std::fprintf(f, "%.6f\n", l);
+  std::fclose(f);
+}
+Delivery read_delivery(const std::string& path) {
+  Delivery d;
+  std::ifstream in(path);
+  in >> d.states >> d.gaps;
+  for (double l; in >> l;) d.latency_ms.push_back(l);
+  return d;
+}
+
+// This program's own path, to start subscribers as processes of their own.
+std::string self_path() {
+  char buf[4096];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+  return n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string();
+}
+
+// The subscribers of one configuration: each a thread of this program (same_process; they share one Cyclone domain
+// instance and its receive threads with the control client), or each a process of its own, as separate viewers on
+// this machine are (more processes and threads on the same cores: docs/benchmarks.md has both).
+std::vector<Delivery> subscribers_run(int subs, bool same_process, int domain, const std::string& sim_id,
+                                      double seconds, const std::function<void()>& meanwhile) {
+  std::vector<Delivery> delivered(static_cast<std::size_t>(subs));
+  if (same_process) {
+    std::vector<std::thread> threads;
+    for (int i = 0; i < subs; ++i)
+      threads.emplace_back([&, i] { delivered[static_cast<std::size_t>(i)] = subscribe(domain, sim_id, seconds); });
+    meanwhile();
+    for (auto& t : threads) t.join();
+    return delivered;
+  }
+  std::vector<std::unique_ptr<ladder::test::Process>> children;
+  std::vector<std::string> files;
+  for (int i = 0; i < subs; ++i) {
+    files.push_back("/tmp/" + sim_id + "-sub" + std::to_string(i) + ".txt");
+    std::remove(files.back().c_str());
+    children.push_back(std::make_unique<ladder::test::Process>(
+        std::vector<std::string>{self_path(), "--subscriber", std::to_string(domain), sim_id, std::to_string(seconds),
+                                 files.back()},
+        "/tmp/" + sim_id + "-sub" + std::to_string(i) + ".log"));
+  }
+  meanwhile();
+  for (int i = 0; i < subs; ++i) {
+    if (!children[static_cast<std::size_t>(i)]->wait_exit(Millis(static_cast<long>(1e3 * seconds) + 30000)))
+      std::fprintf(stderr, "subscriber %d did not finish\n", i);
+    delivered[static_cast<std::size_t>(i)] = read_delivery(files[static_cast<std::size_t>(i)]);
+  }
+  return delivered;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A subscriber process started by subscribers_run(): --subscriber DOMAIN SIM_ID SECONDS OUT_FILE.
+  if (argc == 6 && std::string(argv[1]) == "--subscriber") {
+    write_delivery(subscribe(std::atoi(argv[2]), argv[3], std::atof(argv[4])), argv[5]);
+    return 0;
+  }
   CLI::App app{"ladder-server-bench: ladderd over DDS on loopback, measured"};
   std::vector<int> sizes{6, 1000, 10000, 100000}, subscribers{1, 8};
   double seconds = 5;
@@ -68,6 +133,9 @@ int main(int argc, char** argv) {
   app.add_option("--realtime-priority", realtime, "passed to ladderd: its physics thread's SCHED_FIFO priority");
   int spin_us = 0;
   app.add_option("--spin-us", spin_us, "passed to ladderd: busy-wait the last US microseconds before each tick");
+  bool processes = false;
+  app.add_flag("--subscriber-processes", processes,
+               "run each subscriber as a process of its own (as separate viewers) instead of a thread of this one");
   CLI11_PARSE(app, argc, argv);
 
   std::printf("| N | subscribers | ack p50 ms | ack p99 ms | late p50 us | late p99 us | late max us | missed ticks "
@@ -88,21 +156,18 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "no server; its log:\n%s\n", server.log().c_str());
         return 1;
       }
-      // Subscribers in their own threads (each its own participant, as separate viewers would be).
-      std::vector<Delivery> delivered(static_cast<std::size_t>(subs));
-      std::vector<std::thread> threads;
-      for (int i = 0; i < subs; ++i)
-        threads.emplace_back([&, i] { delivered[static_cast<std::size_t>(i)] = subscribe(domain, sim_id, seconds); });
-      std::this_thread::sleep_for(Millis(500));
-      control.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(3000));  // start a fresh window
       std::vector<double> ack_ms;
-      for (int i = 0; i < commands; ++i) {
-        const auto t0 = Clock::now();
-        control.call(ladder::client::cmd::set("damping.hinge=0"), Millis(10000));
-        ack_ms.push_back(1e3 * std::chrono::duration<double>(Clock::now() - t0).count());
-        std::this_thread::sleep_for(Millis(7));  // not in phase with the 1 ms tick
-      }
-      for (auto& t : threads) t.join();
+      const std::vector<Delivery> delivered =
+          subscribers_run(subs, !processes, domain, sim_id, seconds, [&] {
+            std::this_thread::sleep_for(Millis(500));
+            control.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(3000));  // a fresh window
+            for (int i = 0; i < commands; ++i) {
+              const auto t0 = Clock::now();
+              control.call(ladder::client::cmd::set("damping.hinge=0"), Millis(10000));
+              ack_ms.push_back(1e3 * std::chrono::duration<double>(Clock::now() - t0).count());
+              std::this_thread::sleep_for(Millis(7));  // not in phase with the 1 ms tick
+            }
+          });
       const auto stats = control.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(3000));
       std::vector<double> lat;
       std::size_t states = 0, gaps = 0;
