@@ -128,6 +128,24 @@ TEST_F(Record, ClassicSessionResimulatesBitForBit) {
 
 // kill -9 in the middle: the log reads back up to its last complete event, re-simulates identically, and
 // --resume serves from its last checkpoint (paused, at exactly that step), then runs on.
+// A live setting is published (and logged) as a new SceneInfo only when it changes the settings: a value they
+// already have sends none, and the session still re-simulates bit for bit.
+TEST_F(Record, ALiveSettingThatChangesNothingSendsNoSceneInfo) {
+  start({"--record", log_});
+  accepted(cmd::set("damping.hinge=0"));    // the built-in scene has no hinge friction
+  accepted(cmd::set("damping.linear=0.1"));  // its air drag already
+  accepted(cmd::set("damping.angular=0.3"));  // a change (0.1 before)
+  accepted(cmd::set("damping.angular=0.3"));  // the same again
+  run_until(0.2);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const daemon::SessionLog log = daemon::read_session_log(log_);
+  EXPECT_EQ(log.commands.size(), 4u);
+  EXPECT_EQ(log.scenes.size(), 2u);  // the start and the one change
+  const Result r = shell(kLadderd + " --offline --resimulate " + log_);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
+}
+
 TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
   start({"--record", log_});
   accepted(cmd::tip());
