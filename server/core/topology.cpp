@@ -46,12 +46,10 @@ int World::add_part(const PartDef& def) {
   part.mass = mass;
   part.kinematic = def.kinematic;
   const int index = part_count();
-  for (const auto& p : def.particles) {
-    particles_.push_back({p.mass, index, p.local - com});
-    part.inertia += p.mass * (p.local - com).squaredNorm();
-  }
-  if (!def.kinematic && !(mass > 0 && part.inertia > 0))
+  for (const auto& p : def.particles) part.inertia += p.mass * (p.local - com).squaredNorm();
+  if (!def.kinematic && !(mass > 0 && part.inertia > 0))  // before anything changes: a refused part leaves no trace
     throw std::invalid_argument("a dynamic part needs positive mass and rotational inertia");
+  for (const auto& p : def.particles) particles_.push_back({p.mass, index, p.local - com});
   const Rot q = Rot::of(def.angle);
   // A new part starts as its own body whose frame is the part frame.
   part.body = static_cast<int>(bodies_.size());

@@ -198,6 +198,21 @@ TEST_F(Restructuring, CombineWeldAndFlipConserveMomentum) {
 
 // A folded pair (block 1 turned half a turn about the hinge, lying along block 0) spinning and drifting: moving
 // the hinge to the far corners, which touch, is a perfectly inelastic meeting there; momentum is conserved.
+// A part refused for want of rotational inertia (one particle, dynamic) leaves no particle behind: the next part's
+// particles start where the refused one's would have.
+TEST(World, RefusedPartLeavesNoTrace) {
+  World world;
+  world.add_part(block(Vec2(0, 0)));
+  const int particles = world.particle_count();
+  PartDef point;
+  point.particles.push_back({1.0, Vec2::Zero()});
+  EXPECT_THROW(world.add_part(point), std::invalid_argument);
+  EXPECT_EQ(world.particle_count(), particles);
+  const int next = world.add_part(block(Vec2(1, 0)));
+  EXPECT_EQ(world.first_particle(next), particles);
+  EXPECT_EQ(world.part_count(), 2);
+}
+
 TEST(World, FlipOfAFoldedPairConservesMomentum) {
   Options opt;
   opt.gravity = Vec2::Zero();
@@ -232,7 +247,8 @@ TEST_F(Restructuring, PartRotationAndSpinFollowEachPartThroughAWeld) {
   std::vector<Vec2> d0;
   std::vector<Rot> q0;
   for (int part : parts) {
-    d0.push_back(world.particle_position(world.first_particle(part) + 1) - world.particle_position(world.first_particle(part)));
+    const int first = world.first_particle(part);
+    d0.push_back(world.particle_position(first + 1) - world.particle_position(first));
     q0.push_back(world.part_rotation(part));
   }
   const auto check = [&] {
