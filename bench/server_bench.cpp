@@ -13,7 +13,9 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -60,10 +62,11 @@ void write_delivery(const Delivery& d, const std::string& path) {
   for (double l : d.latency_ms) std::fprintf(f, "%.6f\n", l);
   std::fclose(f);
 }
-Delivery read_delivery(const std::string& path) {
+// The figures a subscriber process wrote, or nothing (and why) if it did not.
+std::optional<Delivery> read_delivery(const std::string& path) {
   Delivery d;
   std::ifstream in(path);
-  in >> d.states >> d.gaps;
+  if (!(in >> d.states >> d.gaps)) return std::nullopt;
   for (double l; in >> l;) d.latency_ms.push_back(l);
   return d;
 }
@@ -72,7 +75,8 @@ Delivery read_delivery(const std::string& path) {
 std::string self_path() {
   char buf[4096];
   const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
-  return n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string();
+  if (n <= 0) throw std::runtime_error("cannot find this program's path (/proc/self/exe) to start subscribers");
+  return std::string(buf, static_cast<std::size_t>(n));
 }
 
 // The subscribers of one configuration: each a thread of this program (same_process; they share one Cyclone domain
@@ -90,20 +94,27 @@ std::vector<Delivery> subscribers_run(int subs, bool same_process, int domain, c
     return delivered;
   }
   std::vector<std::unique_ptr<ladder::test::Process>> children;
-  std::vector<std::string> files;
+  std::vector<std::string> stems;
+  const std::string self = self_path();
   for (int i = 0; i < subs; ++i) {
-    files.push_back("/tmp/" + sim_id + "-sub" + std::to_string(i) + ".txt");
-    std::remove(files.back().c_str());
+    stems.push_back("/tmp/" + sim_id + "-" + std::to_string(getpid()) + "-sub" + std::to_string(i));
     children.push_back(std::make_unique<ladder::test::Process>(
-        std::vector<std::string>{self_path(), "--subscriber", std::to_string(domain), sim_id, std::to_string(seconds),
-                                 files.back()},
-        "/tmp/" + sim_id + "-sub" + std::to_string(i) + ".log"));
+        std::vector<std::string>{self, "--subscriber", std::to_string(domain), sim_id, std::to_string(seconds),
+                                 stems.back() + ".txt"},
+        stems.back() + ".log"));
   }
   meanwhile();
-  for (int i = 0; i < subs; ++i) {
-    if (!children[static_cast<std::size_t>(i)]->wait_exit(Millis(static_cast<long>(1e3 * seconds) + 30000)))
-      std::fprintf(stderr, "subscriber %d did not finish\n", i);
-    delivered[static_cast<std::size_t>(i)] = read_delivery(files[static_cast<std::size_t>(i)]);
+  for (std::size_t i = 0; i < children.size(); ++i) {
+    const auto status = children[i]->wait_exit(Millis(static_cast<long>(1e3 * seconds) + 30000));
+    const auto d = read_delivery(stems[i] + ".txt");
+    if (!status || !WIFEXITED(*status) || WEXITSTATUS(*status) != 0 || !d) {
+      // Counted as a subscriber that received nothing, so that the row shows it; its log says why.
+      std::fprintf(stderr, "subscriber %zu failed (its log: %s.log)\n", i, stems[i].c_str());
+      continue;
+    }
+    delivered[i] = *d;
+    std::remove((stems[i] + ".txt").c_str());
+    std::remove((stems[i] + ".log").c_str());
   }
   return delivered;
 }

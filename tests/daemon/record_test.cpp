@@ -126,8 +126,6 @@ TEST_F(Record, ClassicSessionResimulatesBitForBit) {
   EXPECT_NE(recorded, 0);
 }
 
-// kill -9 in the middle: the log reads back up to its last complete event, re-simulates identically, and
-// --resume serves from its last checkpoint (paused, at exactly that step), then runs on.
 // A live setting is published (and logged) as a new SceneInfo only when it changes the settings: a value they
 // already have sends none, and the session still re-simulates bit for bit.
 TEST_F(Record, ALiveSettingThatChangesNothingSendsNoSceneInfo) {
@@ -146,6 +144,8 @@ TEST_F(Record, ALiveSettingThatChangesNothingSendsNoSceneInfo) {
   EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
 }
 
+// kill -9 in the middle: the log reads back up to its last complete event, re-simulates identically, and
+// --resume serves from its last checkpoint (paused, at exactly that step), then runs on.
 TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
   start({"--record", log_});
   accepted(cmd::tip());
