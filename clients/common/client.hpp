@@ -119,6 +119,9 @@ class Client {
   std::vector<Event> take_events();
   const std::optional<State>& latest_state() const { return state_; }
   const std::optional<SceneInfo>& scene_info() const { return scene_; }
+  // The latest Stats and how many have been received (each covers the server's last window of about a second).
+  const std::optional<ladder_msg_Stats>& latest_stats() const { return stats_; }
+  std::uint64_t stats_received() const { return stats_count_; }
   std::size_t acks_received() const { return acks_received_; }
   // States dropped because their sequences disagree (not one pose and one hinge per block).
   std::uint64_t states_malformed() const { return states_malformed_; }
