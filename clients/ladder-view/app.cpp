@@ -11,7 +11,9 @@ bool Feed::update(client::Millis wait) {
     stats_ = st;
     news_ = Clock::now();
   }
-  const auto& s = client_.latest_state();
+  // Only a state that can be drawn is news: one whose SceneInfo (same generation) has come too. The two topics are
+  // delivered independently, so a late joiner or a reset can see the State first.
+  const client::State* s = state();
   if (!s || (any_ && s->seq == seq_ && s->generation == generation_ && s->sim_time == sim_time_)) return false;
   any_ = true;
   seq_ = s->seq;

@@ -37,7 +37,7 @@ class Feed {
  public:
   using Clock = std::chrono::steady_clock;
   explicit Feed(client::Client& c) : client_(c), news_(Clock::now()) {}
-  // Reads DDS for `wait` (less if Stats come); true when a new state came.
+  // Reads DDS for `wait` (less if Stats come); true when a new state came that state() gives (its SceneInfo too).
   bool update(client::Millis wait = client::Millis(0));
   // The latest state and its scene info, once both are there and belong to the same scene generation.
   const client::State* state() const;

@@ -116,6 +116,7 @@ class Viewer {
 
   // A new state: fit the view to a new scene, and note where the ripple is.
   void on_state() {
+    if (!feed_.state()) return;  // Feed::update() says so only with a state and its SceneInfo; kept safe here too
     const client::State& s = *feed_.state();
     const client::SceneInfo& info = *feed_.info();
     if (!fitted_ || info.blocks != scene_blocks_ || info.scene_name != scene_name_) {
