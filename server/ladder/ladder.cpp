@@ -168,9 +168,11 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     world_particle_ = world_.first_particle(world_.add_part(pin));
     world_.connect(world_particle_, particle(0, 3));
   }
+  measure_coef_.resize(static_cast<size_t>(spec.blocks));
   for (int k = 1; k < spec.blocks; ++k) {
     const int c = corner_of(k);
     hinges_[k] = {c, HingeStatus::Hinged, 0};
+    set_measure_coef(k);
     world_.connect(particle(k - 1, c), particle(k, c));
   }
   world_.finalize();
@@ -200,14 +202,22 @@ double Ladder::hinge_measure(int k) const {
 }
 
 // s of hinge k from the rotations of blocks k - 1 and k: sigma cross(R_a u_a, R_b u_b) = sigma cross(u_a, R u_b) with
-// R = R_a^-1 R_b, = sigma (cos cross(u_a, u_b) + sin u_a.u_b), the units in the blocks' frames (no rotated vectors).
+// R = R_a^-1 R_b, = cos (sigma cross(u_a, u_b)) + sin (sigma u_a.u_b), the units in the blocks' frames (no rotated
+// vectors). The two coefficients are kept per hinge; sigma is +-1, so this gives the bits of
+// sigma (cos cross + sin dot).
 [[gnu::always_inline]] inline double Ladder::measure(int k, const core::Rot& qa, const core::Rot& qb) const {
-  const int c = hinges_[k].corner;
+  const std::array<double, 2>& m = measure_coef_[static_cast<size_t>(k)];
+  const double cos = qa.c * qb.c + qa.s * qb.s, sin = qa.c * qb.s - qa.s * qb.c;
+  return cos * m[0] + sin * m[1];
+}
+
+void Ladder::set_measure_coef(int k) {
+  const int c = hinges_[static_cast<size_t>(k)].corner;
+  // From corner c to c ^ 1 on both blocks: reversing both (c odd) leaves the cross product as it is.
   const Vec2& ua = unit_local_[static_cast<size_t>(k - 1)][static_cast<size_t>(c >> 1)];
   const Vec2& ub = unit_local_[static_cast<size_t>(k)][static_cast<size_t>(c >> 1)];
-  // From corner c to c ^ 1 on both blocks: reversing both (c odd) leaves the cross product as it is.
-  const double cos = qa.c * qb.c + qa.s * qb.s, sin = qa.c * qb.s - qa.s * qb.c;
-  return side_sign(k - 1, c) * (cos * core::cross(ua, ub) + sin * ua.dot(ub));
+  const double sigma = side_sign(k - 1, c);
+  measure_coef_[static_cast<size_t>(k)] = {sigma * core::cross(ua, ub), sigma * ua.dot(ub)};
 }
 
 // ds/dt = sigma (a.b) (w_k - w_{k-1}): turning block k by dphi changes s by sigma (a.b) dphi, block k-1 the other
@@ -473,6 +483,7 @@ void Ladder::restructure(int k) {
     world_.separate(particle(k - 1, c), particle(k, c));                                  // Algorithm 2, line 1
     removed += world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1)).energy_removed;  // lines 2-3
     h.corner = c ^ 1;
+    set_measure_coef(k);
     ++h.flips;
     emit(EventKind::FlipFlop, k, removed);
   } else {

@@ -188,6 +188,10 @@ class Ladder {
   // Each block's lengthwise unit vector in its own frame, from corner 0 to 1 and from corner 2 to 3 (from c ^ 1 to c
   // it is the negative, exactly): hinge_measure() every step without a square root per block.
   std::vector<std::array<Vec2, 2>> unit_local_;
+  // Per hinge k >= 1, for its present corner: sigma cross(u_a, u_b) and sigma u_a.u_b, so that measure() is two
+  // products (set with the corner: construction and flip-flop).
+  std::vector<std::array<double, 2>> measure_coef_;
+  void set_measure_coef(int k);
   // The last step's closing any_violation(), reused as the next step's opening one while the positions and the
   // structure are those it measured (and no hinge was inside its forbidden half, where velocities count too).
   std::vector<double> s_cache_;
