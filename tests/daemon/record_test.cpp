@@ -11,6 +11,7 @@
 #include <cairo.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <cstring>
@@ -53,10 +54,13 @@ class Record : public ::testing::Test {
   void accepted(const ladder_msg_Command& c) {
     const client::Ack a = client_->call(c, kAnswer);
     EXPECT_TRUE(a.accepted) << a.reason;
+    applied_ = std::max(applied_, a.command_seq);
   }
-  // Waits until the sim time passes t.
+  // Waits until the sim time passes t in a state that shows every command acknowledged so far: after a reset, the
+  // old scene's last state (long past t) does not count.
   void run_until(double t) {
-    ASSERT_TRUE(client_->wait_state([&](const client::State& s) { return s.sim_time > t; }, Millis(20000)));
+    ASSERT_TRUE(client_->wait_state(
+        [&](const client::State& s) { return s.commands_applied >= applied_ && s.sim_time > t; }, Millis(20000)));
   }
   int stop_server(int sig) {
     server_->signal(sig);
@@ -65,6 +69,7 @@ class Record : public ::testing::Test {
   }
 
   int domain_ = 0;
+  std::uint64_t applied_ = 0;  // the last acknowledged command's command_seq
   std::string sim_id_, log_;
   fs::path dir_;
   std::optional<Process> server_;
