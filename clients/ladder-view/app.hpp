@@ -43,7 +43,7 @@ class Feed {
   const client::State* state() const;
   const client::SceneInfo* info() const;
   const std::optional<ladder_msg_Stats>& stats() const { return stats_; }
-  // Seconds since the server last sent anything (a state or stats); a stopped server goes quiet.
+  // Seconds since the server last sent a drawable state or stats; a stopped server goes quiet.
   double quiet() const { return std::chrono::duration<double>(Clock::now() - news_).count(); }
 
  private:

@@ -11,10 +11,16 @@ int run_png(const Options& o) {
   // Wait for the state as long as the server keeps talking (a far --at may take a while).
   Feed feed(c);
   bool told = false;
+  client::State state;
+  client::SceneInfo info;
   while (true) {
     feed.update(client::Millis(50));
     const client::State* s = feed.state();
-    if (s && (!o.at || s->sim_time >= *o.at)) break;
+    if (s && (!o.at || s->sim_time >= *o.at)) {
+      state = *s;  // this state and its scene, whatever comes while the Stats are awaited below
+      info = *feed.info();
+      break;
+    }
     if (feed.quiet() > o.timeout) {
       std::cerr << "ladder-view: ladderd '" << o.sim_id << "' stopped talking before t = " << o.at.value_or(0)
                 << " s\n";
@@ -28,8 +34,6 @@ int run_png(const Options& o) {
   }
   // The real-time factor is measured once a second; give it that long to arrive.
   for (int i = 0; i < 24 && !feed.stats(); ++i) feed.update(client::Millis(50));
-  const client::State state = *feed.state();
-  const client::SceneInfo info = *feed.info();
 
   const Camera cam = camera_for(o, info, state, o.width, o.height);
   Hud hud;

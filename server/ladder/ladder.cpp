@@ -204,7 +204,7 @@ double Ladder::hinge_measure(int k) const {
 // s of hinge k from the rotations of blocks k - 1 and k: sigma cross(R_a u_a, R_b u_b) = sigma cross(u_a, R u_b) with
 // R = R_a^-1 R_b, = cos (sigma cross(u_a, u_b)) + sin (sigma u_a.u_b), the units in the blocks' frames (no rotated
 // vectors). The two coefficients are kept per hinge; sigma is +-1, so this gives the bits of
-// sigma (cos cross + sin dot).
+// sigma (cos cross + sin dot), but for the sign of an exact zero (which the comparisons on s cannot see).
 [[gnu::always_inline]] inline double Ladder::measure(int k, const core::Rot& qa, const core::Rot& qb) const {
   const std::array<double, 2>& m = measure_coef_[static_cast<size_t>(k)];
   const double cos = qa.c * qb.c + qa.s * qb.s, sin = qa.c * qb.s - qa.s * qb.c;

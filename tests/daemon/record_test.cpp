@@ -48,6 +48,7 @@ class Record : public ::testing::Test {
     std::vector<std::string> args{kLadderd, "--domain", std::to_string(domain_), "--sim-id", sim_id_};
     args.insert(args.end(), extra.begin(), extra.end());
     server_.emplace(args, (dir_ / "ladderd.log").string());
+    applied_ = 0;  // a new or resumed server numbers its commands afresh
     client_.emplace(domain_, sim_id_, "test");
     ASSERT_TRUE(client_->wait_for_server(kStart)) << server_->log();
   }
