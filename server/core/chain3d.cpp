@@ -12,6 +12,7 @@
 // (w = 1/m; the world has w = 0 and I^-1 = 0). A block Cholesky factors it: per row one 5x5 Cholesky, one 5x5
 // triangular solve for Y and one 5x5 product Y^T Y, where 2-D takes one 2x2 inverse and three 2x2 products.
 #include "core/chain3d.hpp"
+#include "core/hot_inline.hpp"
 
 #include <Eigen/LU>
 
@@ -22,10 +23,6 @@
 #include <string>
 
 namespace ladder::core {
-
-// The sweeps hand each row to a lambda; as in constraints.cpp, GCC does not always inline a large one into the
-// sweep's loop, and a call per row costs.
-#define HOT_INLINE __attribute__((always_inline))
 
 namespace {
 

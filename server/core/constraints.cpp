@@ -7,15 +7,12 @@
 //   K_k-1,k  = -(w_s I + i_s perp(u_b,k-1) perp(u_a,k)^T)    (s: the body the two rows share)
 // and is block-tridiagonal once rows are ordered along chains (topology.cpp).
 #include "core/world.hpp"
+#include "core/hot_inline.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace ladder::core {
-
-// The sweeps hand each row to a lambda; GCC does not always inline a large one into the sweep's loop, and a call
-// per row (with its register spills) cost 10 % of the step.
-#define HOT_INLINE __attribute__((always_inline))
 
 namespace {
 

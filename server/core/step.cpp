@@ -34,6 +34,7 @@
 // angles depends on the angles (docs/tradeoff.md measures its energy error). A chain held at one end grows from that
 // end, whichever way its rows run; a chain held at both ends cannot, and SHAKE steps the world.
 #include "core/world.hpp"
+#include "core/hot_inline.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -41,9 +42,6 @@
 #include <stdexcept>
 
 namespace ladder::core {
-
-// As in constraints.cpp: the sweeps' row lambdas must inline.
-#define HOT_INLINE __attribute__((always_inline))
 
 const char* to_string(Integrator i) {
   switch (i) {
