@@ -147,13 +147,6 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     def.kinematic = i == 0 && spec.top == Top::Held;
     world_.add_part(def);
   }
-  unit_local_.resize(static_cast<size_t>(spec.blocks));
-  for (int i = 0; i < spec.blocks; ++i)
-    for (int pair = 0; pair < 2; ++pair) {
-      const int c = 2 * pair;
-      unit_local_[static_cast<size_t>(i)][static_cast<size_t>(pair)] =
-          (world_.particle_local(particle(i, c ^ 1)) - world_.particle_local(particle(i, c))).normalized();
-    }
   hinges_.resize(static_cast<size_t>(spec.blocks));
   hinges_[0] = {3, spec.top == Top::Free ? HingeStatus::Broken : HingeStatus::Hinged, 0};
   if (spec.top == Top::Held) {
@@ -191,8 +184,14 @@ bool Ladder::held() const { return spec_.top == Top::Held && world_.is_kinematic
 
 Vec2 Ladder::lengthwise(int i) const {
   check_block(i);
-  const Vec2 e = world_.particle_local(particle(i, 1)) - world_.particle_local(particle(i, 0));
-  return world_.part_rotation(i) * e.normalized();
+  return world_.part_rotation(i) * unit_local(i, 0);
+}
+
+// Block i's lengthwise unit vector in its own frame from corner 2 pair to 2 pair + 1 (pair 0: corner 0 to 1; pair 1:
+// corner 2 to 3). From c ^ 1 to c it is the negative, exactly.
+Vec2 Ladder::unit_local(int i, int pair) const {
+  const int c = 2 * pair;
+  return (world_.particle_local(particle(i, c ^ 1)) - world_.particle_local(particle(i, c))).normalized();
 }
 
 double Ladder::hinge_measure(int k) const {
@@ -214,8 +213,7 @@ double Ladder::hinge_measure(int k) const {
 void Ladder::set_measure_coef(int k) {
   const int c = hinges_[static_cast<size_t>(k)].corner;
   // From corner c to c ^ 1 on both blocks: reversing both (c odd) leaves the cross product as it is.
-  const Vec2& ua = unit_local_[static_cast<size_t>(k - 1)][static_cast<size_t>(c >> 1)];
-  const Vec2& ub = unit_local_[static_cast<size_t>(k)][static_cast<size_t>(c >> 1)];
+  const Vec2 ua = unit_local(k - 1, c >> 1), ub = unit_local(k, c >> 1);
   const double sigma = side_sign(k - 1, c);
   measure_coef_[static_cast<size_t>(k)] = {sigma * core::cross(ua, ub), sigma * ua.dot(ub)};
 }

@@ -185,9 +185,7 @@ class Ladder {
   std::array<core::Snapshot, 7> before_;
   double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
   std::vector<Grip> grips_;  // sorted by block
-  // Each block's lengthwise unit vector in its own frame, from corner 0 to 1 and from corner 2 to 3 (from c ^ 1 to c
-  // it is the negative, exactly): hinge_measure() every step without a square root per block.
-  std::vector<std::array<Vec2, 2>> unit_local_;
+  Vec2 unit_local(int i, int pair) const;
   // Per hinge k >= 1, for its present corner: sigma cross(u_a, u_b) and sigma u_a.u_b, so that measure() is two
   // products (set with the corner: construction and flip-flop).
   std::vector<std::array<double, 2>> measure_coef_;
