@@ -79,10 +79,7 @@ class Publisher {
     m.paused = s.paused;
     m.commands_applied = static_cast<std::uint64_t>(s.commands_applied);
     m.energy = s.energy;
-    transport::lend(m.poses, poses_);
-    transport::lend(m.hinge_corner, corner_);
-    transport::lend(m.hinge_status, status_);
-    transport::lend(m.hinge_flips, flips_);
+    transport::lend_blocks(m, poses_, corner_, status_, flips_);
     state_w_.write(m);
     return true;
   }

@@ -612,10 +612,7 @@ void Io::write_state() {
   m.commands_applied = f->commands_applied;
   m.energy = f->energy;
   // Borrowed buffers: DDS serialises them in write() and must not free them.
-  transport::lend(m.poses, f->poses);
-  transport::lend(m.hinge_corner, f->hinge_corner);
-  transport::lend(m.hinge_status, f->hinge_status);
-  transport::lend(m.hinge_flips, f->hinge_flips);
+  transport::lend_blocks(m, f->poses, f->hinge_corner, f->hinge_status, f->hinge_flips);
   transport::lend(m.grips, f->grips);
   state_w_.write(m);
   sh_.states_published.fetch_add(1, std::memory_order_relaxed);

@@ -4,6 +4,9 @@
 #include "ladder.h"
 #include "transport/dds.hpp"
 
+#include <cstdint>
+#include <vector>
+
 namespace ladder::transport {
 
 struct Topics {
@@ -17,5 +20,15 @@ struct Topics {
 
   Entity scene_info, state, command, ack, event, stats;
 };
+
+// Lends a State its blocks and hinges in the message's flat layout (msgs/ladder.idl), for one write: x, y, theta per
+// block in `poses`, and per hinge its corner, status and flip-flops. The vectors must outlive the write.
+inline void lend_blocks(ladder_msg_State& m, const std::vector<double>& poses, const std::vector<std::uint8_t>& corner,
+                        const std::vector<ladder_msg_HingeStatus>& status, const std::vector<std::uint32_t>& flips) {
+  lend(m.poses, poses);
+  lend(m.hinge_corner, corner);
+  lend(m.hinge_status, status);
+  lend(m.hinge_flips, flips);
+}
 
 }  // namespace ladder::transport

@@ -470,10 +470,7 @@ TEST_F(View, WindowWaitsForTheSceneInfoOfAStateThatCameFirst) {
   st.seq = 1;
   st.sim_time = s.sim_time;
   st.paused = true;
-  transport::lend(st.poses, poses);
-  transport::lend(st.hinge_corner, corner);
-  transport::lend(st.hinge_status, status);
-  transport::lend(st.hinge_flips, flips);
+  transport::lend_blocks(st, poses, corner, status, flips);
   state_w.write(st);
 
   Xvfb x(out_ + "-x");

@@ -438,10 +438,7 @@ TEST(ClientLibrary, DropsAStateWhoseSequencesDisagree) {
     ladder_msg_State m{};
     transport::copy_text(m.sim_id, id);
     m.seq = seq;
-    transport::lend(m.poses, p);
-    transport::lend(m.hinge_corner, corner);
-    transport::lend(m.hinge_status, status);
-    transport::lend(m.hinge_flips, flips);
+    transport::lend_blocks(m, p, corner, status, flips);
     w.write(m);
   };
   publish(1, short_poses);
