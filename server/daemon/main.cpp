@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
   app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
+  app.add_option("--tick-log", c.server.tick_log,
+                 "write one line per tick of the real-time loop to FILE: start, lateness, step time, commands");
   app.add_option("--resume", resume, "go on live from the last checkpoint of a session log FILE")
       ->check(CLI::ExistingFile);
   app.add_flag("--offline", offline, "run the scene as fast as possible with no network, then exit");
@@ -116,6 +118,9 @@ int main(int argc, char** argv) {
     const int rc = daemon::run_server(c.server, std::move(session), stop);
     daemon::log_stop_reason();
     return rc;
+  } catch (const daemon::OutputError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 1;

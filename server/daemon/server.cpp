@@ -19,8 +19,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cerrno>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <exception>
@@ -73,6 +75,13 @@ struct CheckpointOut {
   std::uint64_t step = 0, commands_applied = 0, hash = 0;
   double t = 0;
 };
+// One tick of the real-time loop, for the tick log (ladderd --tick-log). Times on the steady clock, in ns.
+struct TickRecord {
+  std::uint64_t tick = 0;
+  std::int64_t start_ns = 0, late_ns = 0, step_ns = 0;
+  std::uint32_t steps = 0, commands = 0;
+  bool published = false;
+};
 struct Outbox {
   std::vector<ladder_msg_CommandAck> acks;
   std::vector<CommandOut> commands;       // only when recording
@@ -80,6 +89,7 @@ struct Outbox {
   std::vector<EventOut> events;
   std::vector<ladder_msg_Stats> stats;
   std::vector<SceneOut> scenes;
+  std::vector<TickRecord> ticks;  // only with a tick log
 };
 
 // Shared between the two threads. The physics thread only ever holds the locks for a swap or a push.
@@ -187,8 +197,12 @@ SceneOut scene_out(const Session& s) {
 
 class Physics {
  public:
-  Physics(Shared& shared, std::unique_ptr<Session> session)
-      : sh_(shared), owned_(std::move(session)), session_(*owned_), recording_(!shared.config.record.empty()) {
+  Physics(Shared& shared, std::unique_ptr<Session> session, bool tick_log)
+      : sh_(shared),
+        owned_(std::move(session)),
+        session_(*owned_),
+        recording_(!shared.config.record.empty()),
+        tick_log_(tick_log) {
     session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
     scene_generation_ = session_.generation();
   }
@@ -205,6 +219,8 @@ class Physics {
   void run_step();
   void push_scene();
   void checkpoint();
+  void log_tick(Clock::time_point start, Clock::duration late);
+  void hand_over_ticks();
   template <class F>
   void with_outbox(F&& f) {
     std::lock_guard lock(sh_.outbox_mutex);
@@ -225,6 +241,9 @@ class Physics {
   Rates scene_rates_{};
   std::string scene_options_;  // the live settings the last SceneInfo carried
   bool recording_;
+  bool tick_log_;
+  TickRecord tick_;                // the tick under way, for the tick log
+  std::vector<TickRecord> ticks_;  // ticks not yet handed to the I/O thread
   double next_checkpoint_ = 0;  // [s of sim time]
   bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
 };
@@ -255,6 +274,7 @@ void Physics::take_commands() {
   }
   if (batch.empty()) return;
   taken_ += batch.size();
+  tick_.commands += static_cast<std::uint32_t>(batch.size());
   dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
   // One deterministic order for the commands taken together (those that arrived during a step, or queued while
   // spinning): client, then id. A command that arrives while the thread waits is taken on its own, as it comes.
@@ -346,7 +366,26 @@ void Physics::run_step() {
     with_outbox([&](Outbox& o) { o.events.push_back({session_.sim().time(), "solver_failure", e.what(), 0, 0}); });
     debt_ = 0;
   }
-  step_us_.push_back(1e6 * seconds(Clock::now() - t0));
+  const Clock::duration took = Clock::now() - t0;
+  step_us_.push_back(1e6 * seconds(took));
+  tick_.step_ns += std::chrono::nanoseconds(took).count();
+  ++tick_.steps;
+}
+
+// The tick log: the I/O thread writes it, from batches handed over a few times a second (and at the end), so the
+// physics thread neither writes files nor takes the outbox's lock every tick.
+void Physics::log_tick(Clock::time_point start, Clock::duration late) {
+  tick_.start_ns = std::chrono::nanoseconds(start.time_since_epoch()).count();
+  tick_.late_ns = std::chrono::nanoseconds(late).count();
+  ticks_.push_back(tick_);
+  tick_ = TickRecord{tick_.tick + 1};
+  if (ticks_.size() >= 250) hand_over_ticks();
+}
+
+void Physics::hand_over_ticks() {
+  if (ticks_.empty()) return;
+  with_outbox([&](Outbox& o) { o.ticks.insert(o.ticks.end(), ticks_.begin(), ticks_.end()); });
+  ticks_.clear();
 }
 
 // Runs the steps this tick owes: real time times the real-time factor, or pending single steps while paused.
@@ -437,12 +476,16 @@ void Physics::run(const std::atomic<bool>& stop) {
   const auto period_d = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
   auto deadline = Clock::now();
   last_stats_ = last_publish_ = deadline;
+  tick_.tick = 1;
+  ticks_.reserve(250);
   push_scene();
   publish_state();
   while (!stop.load(std::memory_order_relaxed) && !sh_.abort.load(std::memory_order_relaxed)) {
     const auto start = Clock::now();
+    Clock::duration late{};
     if (rates.real_time_factor > 0 || session_.paused()) {
-      late_us_.push_back(1e6 * seconds(start - deadline));
+      late = start - deadline;
+      late_us_.push_back(1e6 * seconds(late));
       if (start - deadline > period_d) {  // more than a whole tick late: count it and start afresh
         ++missed_;
         deadline = start;
@@ -459,13 +502,16 @@ void Physics::run(const std::atomic<bool>& stop) {
     if (dirty_ && seconds(now - last_publish_) >= 1.0 / rates.publish - 0.5 * period) {
       publish_state();
       last_publish_ = now;
+      tick_.published = true;
     }
     if (seconds(now - last_stats_) >= 1.0 / sh_.config.stats_rate) publish_stats(now);
+    if (tick_log_) log_tick(start, late);
     sh_.waiter->wake();
     deadline += period_d;
     if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
   }
   publish_state();
+  hand_over_ticks();
   sh_.physics_done = true;
   sh_.waiter->wake();
 }
@@ -475,9 +521,10 @@ void Physics::run(const std::atomic<bool>& stop) {
 
 class Io {
  public:
-  Io(Shared& shared, transport::LogWriter* log)
+  Io(Shared& shared, transport::LogWriter* log, std::FILE* tick_log)
       : sh_(shared),
         log_(log),
+        tick_log_(tick_log),
         participant_(transport::make_participant(static_cast<dds_domainid_t>(shared.config.domain))),
         topics_(participant_),
         scene_w_(participant_, topics_.scene_info, transport::Profile::SceneInfo),
@@ -502,9 +549,11 @@ class Io {
 
   void record_outbox();
   void record_state(const StateFrame& f, std::uint64_t seq);
+  void write_ticks();
 
   Shared& sh_;
   transport::LogWriter* log_;  // null when not recording
+  std::FILE* tick_log_;        // null without --tick-log
   transport::Entity participant_;  // first: destroyed last
   transport::Topics topics_;
   transport::Writer<ladder_msg_SceneInfo> scene_w_;
@@ -591,6 +640,8 @@ void Io::write_outbox() {
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) stats_w_.write(s);
   if (log_) record_outbox();
+  if (tick_log_) write_ticks();
+  out_.ticks.clear();
   out_.commands.clear();
   out_.checkpoints.clear();
   out_.scenes.clear();
@@ -617,6 +668,15 @@ void Io::write_state() {
   state_w_.write(m);
   sh_.states_published.fetch_add(1, std::memory_order_relaxed);
   if (log_) record_state(*f, m.seq);
+}
+
+void Io::write_ticks() {
+  if (out_.ticks.empty()) return;
+  for (const TickRecord& t : out_.ticks)
+    std::fprintf(tick_log_, "%llu %lld %lld %lld %u %u %d\n", static_cast<unsigned long long>(t.tick),
+                 static_cast<long long>(t.start_ns), static_cast<long long>(t.late_ns),
+                 static_cast<long long>(t.step_ns), t.steps, t.commands, t.published ? 1 : 0);
+  std::fflush(tick_log_);  // a few times a second: `tail -f` follows it
 }
 
 // The session log (ladderd --record): what was published, and the commands as the simulation took them. The
@@ -710,6 +770,27 @@ void Io::run() {
   }
 }
 
+using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
+
+// The tick log's file with its header (docs/server.md, "The tick log").
+File open_tick_log(const ServerConfig& config) {
+  File f(nullptr, &std::fclose);
+  if (config.tick_log.empty()) return f;
+  f.reset(std::fopen(config.tick_log.c_str(), "w"));
+  if (!f) throw OutputError("cannot create the tick log '" + config.tick_log + "': " + std::strerror(errno));
+  std::fprintf(f.get(),
+               "# %s tick log, sim id '%s', physics rate %g Hz: one line per tick of the real-time loop.\n"
+               "# start_ns: when the tick started, on CLOCK_MONOTONIC [ns]; late_ns: how late that was against its "
+               "deadline [ns]\n"
+               "# (0 at real-time factor 0); step_ns, steps: time in and number of physics steps in the tick; "
+               "commands: commands\n"
+               "# applied since the previous tick's end; published: 1 if the tick handed a state over for "
+               "publishing.\n"
+               "# tick start_ns late_ns step_ns steps commands published\n",
+               kVersion, config.sim_id.c_str(), config.rates.physics);
+  return f;
+}
+
 // Puts the calling thread under SCHED_FIFO at `priority`, so that no thread of the normal scheduler (other programs:
 // viewers on the same cores) delays it; says which. Returns whether it could.
 bool run_realtime(const char* thread, int priority) {
@@ -737,16 +818,22 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   Shared shared(config);
   std::unique_ptr<transport::LogWriter> log;
   if (!config.record.empty()) {
-    log = std::make_unique<transport::LogWriter>(config.record);
+    try {
+      log = std::make_unique<transport::LogWriter>(config.record);
+    } catch (const std::runtime_error& e) {
+      throw OutputError(e.what());
+    }
     spdlog::info("recording the session to {}", config.record);
   }
+  const File tick_log = open_tick_log(config);
+  if (tick_log) spdlog::info("writing one line per tick to {}", config.tick_log);
   // With a real-time priority this (the I/O) thread runs just below the physics thread, and so do DDS's threads,
   // which inherit it when Io starts them: a thread of the normal scheduler could otherwise hold the I/O side up while
   // the physics thread waits for the hand-off's lock.
   const bool realtime =
       config.realtime_priority > 0 && run_realtime("I/O", std::max(1, config.realtime_priority - 1));
-  Io io(shared, log.get());
-  Physics physics(shared, std::move(session));
+  Io io(shared, log.get(), tick_log.get());
+  Physics physics(shared, std::move(session), tick_log != nullptr);
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
                "factor {}",
                scene.name, config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,

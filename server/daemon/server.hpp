@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstddef>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 namespace ladder::daemon {
@@ -30,6 +31,15 @@ struct ServerConfig {
   // through them, so that a tick starts on time rather than when the timer wakes the thread (tens of microseconds
   // late); it costs that much CPU per tick. 0 = sleep all the way.
   int spin_us = 0;
+  // Writes one line per tick of the real-time loop (when it started, how late, its steps, commands and publish) to
+  // this file; empty = none. The I/O thread writes it (docs/server.md, "The tick log").
+  std::string tick_log;
+};
+
+// An output file (--record, --tick-log) cannot be created: bad input, before anything starts.
+class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
 };
 
 // Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws

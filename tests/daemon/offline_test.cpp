@@ -142,7 +142,11 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{scene + " --domain 999", "--domain"},
                         Case{scene + " --realtime-priority 100", "--realtime-priority"},
                         Case{scene + " --rate 500 --spin-us 5000",
-                             "server.spin_us must be from 0 to half the tick period (1000 us at 500 Hz)"}}) {
+                             "server.spin_us must be from 0 to half the tick period (1000 us at 500 Hz)"},
+                        Case{scene + " --tick-log /no/such/dir/t.txt",
+                             "cannot create the tick log '/no/such/dir/t.txt': No such file or directory"},
+                        Case{scene + " --record /no/such/dir/s.lcmlog",
+                             "cannot create the log file '/no/such/dir/s.lcmlog'"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;

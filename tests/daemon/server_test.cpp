@@ -363,6 +363,59 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
 }
 
+// --tick-log: one line per tick of the real-time loop. Its deadlines lie exactly one period apart (a tick more than
+// one period late starts the schedule afresh from itself); its steps add up to the server's step count, with none
+// between the pause and the `step 10` but those ten; its commands are the two the test sent.
+TEST_F(Server, TickLogAccountsForEveryTickStepAndCommand) {
+  const std::string path = std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".ticks";
+  start({"--rate", "200", "--tick-log", path});
+  ASSERT_TRUE(c().wait_state([](const client::State& st) { return st.step >= 20; }, kAnswer));
+  const client::State p = pause();
+  expect_accepted(cmd::step(10));
+  const auto s = c().wait_state([&](const client::State& st) { return st.step >= p.step + 10; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  std::this_thread::sleep_for(Millis(100));  // some ticks while paused
+  server_->signal(SIGTERM);
+  const auto status = server_->wait_exit(Millis(5000));
+  ASSERT_TRUE(status && WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << server_->log();
+
+  struct Tick {
+    long long tick, start, late, step_ns, steps, commands, published;
+  };
+  std::vector<Tick> ticks;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream f(line);
+    Tick t{};
+    ASSERT_TRUE(f >> t.tick >> t.start >> t.late >> t.step_ns >> t.steps >> t.commands >> t.published) << line;
+    ticks.push_back(t);
+  }
+  ASSERT_GE(ticks.size(), 20U);
+  constexpr long long kPeriod = 5'000'000;  // [ns] at 200 Hz
+  long long steps = 0, commands = 0, steps_from_pause = 0;
+  bool paused = false;
+  for (std::size_t i = 0; i < ticks.size(); ++i) {
+    const Tick& t = ticks[i];
+    ASSERT_EQ(t.tick, static_cast<long long>(i + 1)) << "a tick is missing from the log";
+    EXPECT_GE(t.late, 0) << "tick " << t.tick;
+    EXPECT_EQ(t.steps == 0, t.step_ns == 0) << "tick " << t.tick;
+    if (i > 0) {
+      const Tick& prev = ticks[i - 1];
+      const long long prev_deadline = prev.late > kPeriod ? prev.start : prev.start - prev.late;
+      EXPECT_EQ(t.start - t.late - prev_deadline, kPeriod) << "tick " << t.tick;
+    }
+    paused = paused || t.commands > 0;  // the first command, the pause, is applied before its tick's steps
+    steps += t.steps;
+    commands += t.commands;
+    if (paused) steps_from_pause += t.steps;
+  }
+  EXPECT_EQ(steps, static_cast<long long>(s->step));
+  EXPECT_EQ(steps_from_pause, 10);
+  EXPECT_EQ(commands, 2);
+  std::filesystem::remove(path);
+}
+
 // The scheduling policy (41st field of /proc/PID/task/TID/stat; 1 = SCHED_FIFO) and real-time priority (40th) of each
 // thread of a process. The second field, the thread's name, is in parentheses and may hold spaces.
 std::vector<std::pair<int, int>> thread_policies(pid_t pid) {
