@@ -200,8 +200,8 @@ int main(int argc, char** argv) {
   // and the real-time factor is the median window's.
   std::printf("| N | subscribers | ack p50 ms | ack p99 ms | ticks | late p50 us | late p99 us | late max us | "
               "ticks late > 200 us | missed ticks | late p99 us, median / worst 1 s | rtf | states/s per sub | "
-              "state lat p50 ms | p99 ms | gaps | step p50 us | step p99 us | steal ms |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+              "state lat p50 ms | p99 ms | gaps | dropped | step p50 us | step p99 us | steal ms |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (int n : sizes) {
     for (int subs : subscribers) {
       const std::string sim_id = "bench-" + std::to_string(n) + "-" + std::to_string(subs);
@@ -222,7 +222,7 @@ int main(int argc, char** argv) {
       std::vector<double> ack_ms;
       // The server's Stats of every 1 s window while the subscribers run (not the one after: it is unloaded).
       std::vector<ladder_msg_Stats> windows;
-      std::uint64_t stats_seen = 0;
+      std::uint64_t stats_seen = 0, dropped_from = 0;
       const auto note_stats = [&] {
         if (control.stats_received() == stats_seen) return;
         stats_seen = control.stats_received();
@@ -238,6 +238,7 @@ int main(int argc, char** argv) {
             std::this_thread::sleep_for(Millis(500));
             control.wait_stats(any, Millis(3000));  // the windows counted start after this one
             stats_seen = control.stats_received();
+            if (control.latest_stats()) dropped_from = control.latest_stats()->states_dropped;
             from = Clock::now();
             steal_from = steal_ms();
             for (int i = 0; i < commands; ++i) {
@@ -266,6 +267,8 @@ int main(int argc, char** argv) {
         return v;
       };
       const std::vector<double> p99 = over(&ladder_msg_Stats::late_p99_us);
+      // States the server made but never wrote, because a newer one replaced them first (a missed publish).
+      const std::uint64_t dropped = windows.empty() ? 0 : windows.back().states_dropped - dropped_from;
       server.signal(SIGTERM);
       server.wait_exit(Millis(5000));  // the tick log is complete when the server has stopped
       std::vector<double> late_us, step_us;
@@ -280,12 +283,12 @@ int main(int argc, char** argv) {
       if (ticks.empty()) std::fprintf(stderr, "no ticks in the server's tick log %s\n", tick_log.c_str());
       std::remove(tick_log.c_str());
       std::printf("| %d | %d | %.3f | %.3f | %zu | %.0f | %.0f | %.0f | %zu | %zu | %.0f / %.0f | %.2f | %.1f | %.2f | "
-                  "%.2f | %zu | %.0f | %.0f | %.0f |\n",
+                  "%.2f | %zu | %llu | %.0f | %.0f | %.0f |\n",
                   n, subs, percentile(ack_ms, 0.5), percentile(ack_ms, 0.99), ticks.size(), percentile(late_us, 0.5),
                   percentile(late_us, 0.99), percentile(late_us, 1.0), over_200, missed, median(p99),
                   percentile(p99, 1.0), median(over(&ladder_msg_Stats::real_time_factor)),
                   static_cast<double>(states) / subs / seconds, percentile(lat, 0.5), percentile(lat, 0.99), gaps,
-                  percentile(step_us, 0.5), percentile(step_us, 0.99), steal_to - steal_from);
+                  static_cast<unsigned long long>(dropped), percentile(step_us, 0.5), percentile(step_us, 0.99), steal_to - steal_from);
       std::fflush(stdout);
     }
   }
