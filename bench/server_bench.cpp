@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
             }
             while (Clock::now() < end)
               if (control.wait_stats(any, Millis(1500))) note_stats();
-            to = Clock::now();
+            to = std::min(Clock::now(), end);  // the last wait may outlast the subscribers
             steal_to = steal_ms();
           });
       std::vector<double> lat;
@@ -270,7 +270,8 @@ int main(int argc, char** argv) {
       // States the server made but never wrote, because a newer one replaced them first (a missed publish).
       const std::uint64_t dropped = windows.empty() ? 0 : windows.back().states_dropped - dropped_from;
       server.signal(SIGTERM);
-      server.wait_exit(Millis(5000));  // the tick log is complete when the server has stopped
+      if (!server.wait_exit(Millis(5000)))  // the tick log is complete when the server has stopped
+        std::fprintf(stderr, "ladderd did not stop within 5 s: its tick log may be incomplete\n");
       std::vector<double> late_us, step_us;
       std::size_t over_200 = 0, missed = 0;
       const std::vector<Tick> ticks = read_ticks(tick_log, from, to);

@@ -210,6 +210,7 @@ class Physics {
   void run(const std::atomic<bool>& stop);
 
  private:
+  void tick_loop(const std::atomic<bool>& stop);
   void take_commands();
   void idle_until(Clock::time_point deadline, const std::atomic<bool>& stop);
   void advance(double period, Clock::time_point tick_start);
@@ -471,15 +472,29 @@ void Physics::publish_stats(Clock::time_point now) {
 
 void Physics::run(const std::atomic<bool>& stop) {
   prctl(PR_SET_TIMERSLACK, 1UL);  // wake within microseconds of the deadline, not the default 50 us
-  const Rates& rates = session_.rates();
-  const double period = 1.0 / rates.physics;
-  const auto period_d = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
-  auto deadline = Clock::now();
-  last_stats_ = last_publish_ = deadline;
+  last_stats_ = last_publish_ = Clock::now();
   tick_.tick = 1;
   ticks_.reserve(250);
   push_scene();
   publish_state();
+  try {
+    tick_loop(stop);
+  } catch (...) {
+    hand_over_ticks();  // the ticks before a failure are the ones worth reading
+    throw;
+  }
+  publish_state();
+  hand_over_ticks();
+  sh_.physics_done = true;
+  sh_.waiter->wake();
+}
+
+// The real-time loop, until `stop` or an I/O failure.
+void Physics::tick_loop(const std::atomic<bool>& stop) {
+  const Rates& rates = session_.rates();
+  const double period = 1.0 / rates.physics;
+  const auto period_d = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
+  auto deadline = Clock::now();
   while (!stop.load(std::memory_order_relaxed) && !sh_.abort.load(std::memory_order_relaxed)) {
     const auto start = Clock::now();
     Clock::duration late{};
@@ -510,10 +525,6 @@ void Physics::run(const std::atomic<bool>& stop) {
     deadline += period_d;
     if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
   }
-  publish_state();
-  hand_over_ticks();
-  sh_.physics_done = true;
-  sh_.waiter->wake();
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -782,10 +793,10 @@ File open_tick_log(const ServerConfig& config) {
                "# %s tick log, sim id '%s', physics rate %g Hz: one line per tick of the real-time loop.\n"
                "# start_ns: when the tick started, on CLOCK_MONOTONIC [ns]; late_ns: how late that was against its "
                "deadline [ns]\n"
-               "# (0 at real-time factor 0); step_ns, steps: time in and number of physics steps in the tick; "
-               "commands: commands\n"
-               "# applied since the previous tick's end; published: 1 if the tick handed a state over for "
-               "publishing.\n"
+               "# (0 while running at real-time factor 0); step_ns, steps: time in and number of physics steps in the "
+               "tick;\n"
+               "# commands: commands applied since the previous tick's end; published: 1 if the tick handed a state "
+               "over.\n"
                "# tick start_ns late_ns step_ns steps commands published\n",
                kVersion, config.sim_id.c_str(), config.rates.physics);
   return f;
@@ -861,6 +872,8 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
     throw;
   }
   physics_thread.join();
+  if (tick_log && (std::fflush(tick_log.get()) != 0 || std::ferror(tick_log.get())))
+    spdlog::warn("the tick log {} is incomplete: writing to it failed", config.tick_log);
   if (log) {
     log.reset();  // writes what is queued, flushes, closes
     spdlog::info("session log {} closed", config.record);

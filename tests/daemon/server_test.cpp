@@ -393,7 +393,7 @@ TEST_F(Server, TickLogAccountsForEveryTickStepAndCommand) {
   }
   ASSERT_GE(ticks.size(), 20U);
   constexpr long long kPeriod = 5'000'000;  // [ns] at 200 Hz
-  long long steps = 0, commands = 0, steps_from_pause = 0;
+  long long steps = 0, commands = 0, steps_from_pause = 0, published = 0;
   bool paused = false;
   for (std::size_t i = 0; i < ticks.size(); ++i) {
     const Tick& t = ticks[i];
@@ -408,11 +408,13 @@ TEST_F(Server, TickLogAccountsForEveryTickStepAndCommand) {
     paused = paused || t.commands > 0;  // the first command, the pause, is applied before its tick's steps
     steps += t.steps;
     commands += t.commands;
+    published += t.published;
     if (paused) steps_from_pause += t.steps;
   }
   EXPECT_EQ(steps, static_cast<long long>(s->step));
   EXPECT_EQ(steps_from_pause, 10);
   EXPECT_EQ(commands, 2);
+  EXPECT_GT(published, 0);  // at least the states after the pause and the step
   std::filesystem::remove(path);
 }
 
