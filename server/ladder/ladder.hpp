@@ -180,9 +180,11 @@ class Ladder {
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
   bool locating_ = false;  // in locate(): its trial steps are single steps (see advance())
-  // step_guarded()'s world before its step, one per depth of halving (0 to 6), reused: no allocation per step. The
-  // outermost is also the start that advance_by() locates events from.
-  std::array<core::Snapshot, 7> before_;
+  // The watchdog redoes a failed step in halves, at most this deep (1/64 of the step), then gives up.
+  static constexpr int kMaxHalvings = 6;
+  // step_guarded()'s world before its step, one per depth of halving (0 to kMaxHalvings), reused: no allocation per
+  // step. The outermost is also the start that advance_by() locates events from.
+  std::array<core::Snapshot, kMaxHalvings + 1> before_;
   double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
   std::vector<Grip> grips_;  // sorted by block
   Vec2 unit_local(int i, int pair) const;
