@@ -275,7 +275,6 @@ void Physics::take_commands() {
   }
   if (batch.empty()) return;
   taken_ += batch.size();
-  tick_.commands += static_cast<std::uint32_t>(batch.size());
   dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
   // One deterministic order for the commands taken together (those that arrived during a step, or queued while
   // spinning): client, then id. A command that arrives while the thread waits is taken on its own, as it comes.
@@ -501,7 +500,7 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     if (rates.real_time_factor > 0 || session_.paused()) {
       late = start - deadline;
       late_us_.push_back(1e6 * seconds(late));
-      if (start - deadline > period_d) {  // more than a whole tick late: count it and start afresh
+      if (late > period_d) {  // more than a whole tick late: count it and start afresh
         ++missed_;
         deadline = start;
       }
@@ -511,6 +510,7 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     take_commands();
     if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
     advance(period, start);
+    tick_.commands = static_cast<std::uint32_t>(taken_);  // those of the wait before this tick and of its start
     taken_ = 0;  // commands applied between ticks and at the next tick's start share one commands.per_tick
     collect_events();
     const auto now = Clock::now();
