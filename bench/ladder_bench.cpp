@@ -140,8 +140,8 @@ void LadderHeldReduced(benchmark::State& state) {
 }
 // The same ladder of 10 000 blocks tipped at t = 0: the first 0.2 s of its 0.3 s tip (LadderSpec's tip duration).
 // With the defaults this tip stops the simulation 35 ms in (offline, the same tip): the hinge solve fails even at
-// 1/64 of the step, with the chain's 2 450 N weight on the top hinge (docs/benchmarks.md). The projection integrator (to 1e-6 m, as ChainHangingProjection) and `reduced`
-// (whose watchdog redoes many steps in halves) run it.
+// 1/64 of the step, with the chain's 2 450 N weight on the top hinge (docs/benchmarks.md). The projection integrator
+// (to 1e-6 m, as ChainHangingProjection) and `reduced` (whose watchdog redoes many steps in halves) run it.
 void LadderTippedProjection(benchmark::State& state) {
   auto l = held_ladder(static_cast<int>(state.range(0)), false);
   l->set_options(projection(l->world().options()));

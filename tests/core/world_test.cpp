@@ -196,8 +196,6 @@ TEST_F(Restructuring, CombineWeldAndFlipConserveMomentum) {
   EXPECT_LT(world.max_hinge_error(), 1e-9);
 }
 
-// A folded pair (block 1 turned half a turn about the hinge, lying along block 0) spinning and drifting: moving
-// the hinge to the far corners, which touch, is a perfectly inelastic meeting there; momentum is conserved.
 // A part refused for want of rotational inertia (one particle, dynamic) leaves no particle behind: the next part's
 // particles start where the refused one's would have.
 TEST(World, RefusedPartLeavesNoTrace) {
@@ -213,6 +211,8 @@ TEST(World, RefusedPartLeavesNoTrace) {
   EXPECT_EQ(world.part_count(), 2);
 }
 
+// A folded pair (block 1 turned half a turn about the hinge, lying along block 0) spinning and drifting: moving
+// the hinge to the far corners, which touch, is a perfectly inelastic meeting there; momentum is conserved.
 TEST(World, FlipOfAFoldedPairConservesMomentum) {
   Options opt;
   opt.gravity = Vec2::Zero();
