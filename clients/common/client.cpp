@@ -153,6 +153,10 @@ void Client::poll() {
       ++states_malformed_;
       return;
     }
+    if (info.publication_handle != server_writer_) {  // the first state, or a restarted server's
+      server_ = transport::writer_participant(state_r_.entity(), info.publication_handle);
+      server_writer_ = info.publication_handle;
+    }
     State& st = state_ ? *state_ : state_.emplace();  // reuses the vectors' storage
     st.latency = 1e-9 * static_cast<double>(dds_time() - info.source_timestamp);
     st.generation = s.generation;
@@ -218,7 +222,8 @@ bool Client::wait_for_server(Millis timeout) {
   // A replay (ladderctl replay) publishes but takes no commands.
   return wait(timeout, [&] {
     return state_.has_value() && scene_.has_value() &&
-           (scene_->replay || (command_w_.matched() > 0 && ack_r_.matched() > 0 && event_r_.matched() > 0));
+           (scene_->replay || (server_ && command_w_.matched_in(*server_) && ack_r_.matched_in(*server_) &&
+                               event_r_.matched_in(*server_)));
   });
 }
 

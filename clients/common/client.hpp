@@ -97,8 +97,9 @@ class Client {
   // client_id: how the server's log and acks name this client; empty = "<host>-<pid>".
   Client(int domain, std::string sim_id, std::string client_id = {});
 
-  // Waits until the server takes our commands and publishes to us (a replay: publishes to us); false at the
-  // timeout.
+  // Waits until the server of our sim id takes our commands and publishes to us (a replay: publishes to us); false
+  // at the timeout. "Takes our commands" means matched with that server's own participant: in a domain that other
+  // servers share, a match with theirs would let a first command be lost.
   bool wait_for_server(Millis timeout);
   // Sends a command (sim id, client id and a fresh command id filled in) and returns its id.
   std::uint64_t send(ladder_msg_Command c);
@@ -145,6 +146,9 @@ class Client {
   std::size_t acks_received_ = 0;
   std::vector<Event> events_;
   std::optional<State> state_;
+  // The participant of the writer of our latest State (the server's), and that writer.
+  std::optional<dds_guid_t> server_;
+  dds_instance_handle_t server_writer_ = 0;
   std::uint64_t state_count_ = 0;
   std::uint64_t states_malformed_ = 0;
   std::optional<SceneInfo> scene_;

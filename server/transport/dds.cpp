@@ -1,12 +1,57 @@
 #include "transport/dds.hpp"
 
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 
 namespace ladder::transport {
 
 void use_default_config(const std::string& xml) {
   // setenv with overwrite = 0 keeps a user's CYCLONEDDS_URI. Cyclone reads it when the first entity is created.
   setenv("CYCLONEDDS_URI", xml.c_str(), 0);
+}
+
+namespace {
+
+using MatchedFn = dds_return_t (*)(dds_entity_t, dds_instance_handle_t*, size_t);
+using MatchedDataFn = dds_builtintopic_endpoint_t* (*)(dds_entity_t, dds_instance_handle_t);
+
+std::optional<dds_guid_t> participant_of(dds_entity_t e, dds_instance_handle_t ih, MatchedDataFn data) {
+  dds_builtintopic_endpoint_t* ep = data(e, ih);
+  if (ep == nullptr) return std::nullopt;  // unmatched in the meantime
+  const dds_guid_t p = ep->participant_key;
+  dds_builtintopic_free_endpoint(ep);
+  return p;
+}
+
+bool matched_in(dds_entity_t e, const dds_guid_t& participant, MatchedFn matched, MatchedDataFn data) {
+  std::vector<dds_instance_handle_t> handles(8);
+  while (true) {  // the count may grow between two calls: ask again until the array held them all
+    const auto n = static_cast<std::size_t>(check(matched(e, handles.data(), handles.size()), "matched endpoints"));
+    const bool all = n <= handles.size();
+    handles.resize(n);
+    if (all) break;
+  }
+  return std::any_of(handles.begin(), handles.end(), [&](dds_instance_handle_t ih) {
+    const auto p = participant_of(e, ih, data);
+    return p && same_participant(*p, participant);
+  });
+}
+
+}  // namespace
+
+bool same_participant(const dds_guid_t& a, const dds_guid_t& b) { return std::memcmp(a.v, b.v, sizeof a.v) == 0; }
+
+std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer) {
+  return participant_of(reader.get(), writer, dds_get_matched_publication_data);
+}
+
+bool writer_matched_in(const Entity& writer, const dds_guid_t& participant) {
+  return matched_in(writer.get(), participant, dds_get_matched_subscriptions, dds_get_matched_subscription_data);
+}
+
+bool reader_matched_in(const Entity& reader, const dds_guid_t& participant) {
+  return matched_in(reader.get(), participant, dds_get_matched_publications, dds_get_matched_publication_data);
 }
 
 void apply_profile(Qos& qos, Profile p) {

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -92,6 +93,16 @@ void apply_profile(Qos& q, Profile p);
 Entity make_participant(dds_domainid_t domain);
 Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name);
 
+// Which participant a remote endpoint belongs to, from the built-in topics' data. A client uses this to know that
+// its command writer has found the reader of the server whose states it sees, and not only some other server's.
+bool same_participant(const dds_guid_t& a, const dds_guid_t& b);
+// The participant of the writer a reader's sample came from (dds_sample_info_t::publication_handle); nullopt when
+// the reader is no longer matched with that writer.
+std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer);
+// Whether a writer is matched with a reader in `participant`, or a reader with a writer in it.
+bool writer_matched_in(const Entity& writer, const dds_guid_t& participant);
+bool reader_matched_in(const Entity& reader, const dds_guid_t& participant);
+
 template <class T>
 class Writer {
  public:
@@ -108,6 +119,7 @@ class Writer {
     check(dds_get_publication_matched_status(e_.get(), &st), "publication matched status");
     return st.current_count;
   }
+  bool matched_in(const dds_guid_t& participant) const { return writer_matched_in(e_, participant); }
   const Entity& entity() const { return e_; }
 
  private:
@@ -154,6 +166,7 @@ class Reader {
     check(dds_get_subscription_matched_status(e_.get(), &st), "subscription matched status");
     return st.current_count;
   }
+  bool matched_in(const dds_guid_t& participant) const { return reader_matched_in(e_, participant); }
   const Entity& entity() const { return e_; }
 
  private:

@@ -476,6 +476,53 @@ TEST_F(Server, TwoSimIdsShareADomainWithoutMixing) {
   EXPECT_EQ(c().scene_info()->blocks, 6u);
 }
 
+// In a domain that another server shares, a client is ready only when it has found the command reader, ack writer
+// and event writer of the server that publishes its sim id's states. Discovery can bring a server's writers before
+// its readers; a client that had only matched the other server's reader (what `matched() > 0` counted) lost its first
+// command (this test's CI failure, TwoSimIdsShareADomainWithoutMixing). The late server is played by a participant
+// of the test's own, which creates its readers and writers in that order on purpose: a real one creates them too
+// quickly for the race to be produced at will.
+TEST_F(Server, AClientIsReadyOnlyWhenItsOwnServerTakesCommands) {
+  start();
+  const std::string id = "late-" + std::to_string(getpid());
+  Client late(domain_, id, "test");
+  const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain_));
+  const transport::Topics topics(participant);
+  const transport::Writer<ladder_msg_SceneInfo> scene_w(participant, topics.scene_info, transport::Profile::SceneInfo);
+  const transport::Writer<ladder_msg_State> state_w(participant, topics.state, transport::Profile::State);
+  ladder_msg_SceneInfo si{};
+  transport::copy_text(si.sim_id, id);
+  si.blocks = 1;
+  scene_w.write(si);
+  ladder_msg_State st{};
+  transport::copy_text(st.sim_id, id);
+  st.seq = 1;
+  const std::vector<double> poses{0.0, 0.0, 0.0};
+  const std::vector<std::uint8_t> corner{0};
+  const std::vector<ladder_msg_HingeStatus> status{ladder_msg_HINGED};
+  const std::vector<std::uint32_t> flips{0};
+  transport::lend_blocks(st, poses, corner, status, flips);
+  state_w.write(st);
+  // The client sees the late server's SceneInfo and State, and ladderd's command reader: not ready.
+  EXPECT_TRUE(late.wait_state([](const client::State& s) { return s.seq == 1; }, kAnswer));
+  EXPECT_FALSE(late.wait_for_server(Millis(1500))) << "ready with only another server's command reader";
+  const transport::Reader<ladder_msg_Command> command_r(participant, topics.command, transport::Profile::Command);
+  const transport::Writer<ladder_msg_CommandAck> ack_w(participant, topics.ack, transport::Profile::CommandAck);
+  const transport::Writer<ladder_msg_Event> event_w(participant, topics.event, transport::Profile::Event);
+  ASSERT_TRUE(late.wait_for_server(kAnswer));
+  // and its first command reaches the late server.
+  const std::uint64_t sent = late.send(cmd::pause());
+  std::vector<std::uint64_t> received;
+  const auto deadline = Clock::now() + kAnswer;
+  while (received.empty() && Clock::now() < deadline) {
+    command_r.take([&](const ladder_msg_Command& m, const dds_sample_info_t&) {
+      if (std::string(m.sim_id) == id) received.push_back(m.command_id);
+    });
+    std::this_thread::sleep_for(Millis(10));
+  }
+  EXPECT_EQ(received, std::vector<std::uint64_t>{sent});
+}
+
 // A client drops a State whose sequences disagree (a broken or hostile publisher: five numbers for two poses),
 // counts it, and takes the next good one.
 TEST(ClientLibrary, DropsAStateWhoseSequencesDisagree) {
