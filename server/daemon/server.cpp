@@ -28,8 +28,10 @@
 #include <exception>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <tuple>
+#include <unordered_map>
 #include <vector>
 
 namespace ladder::daemon {
@@ -553,7 +555,18 @@ class Io {
   void run();
 
  private:
+  // A client's command writer, and whether this server's ack and event writers have found its participant.
+  struct Sender {
+    std::optional<dds_guid_t> participant;  // none: the writer had left when its first command was read
+    Clock::time_point first_seen;
+    std::uint64_t checked = 0;  // the last take_commands pass that asked
+    bool ready = false;
+  };
+  static constexpr std::chrono::seconds kHearingLimit{2};  // the longest a sender's commands wait to be answerable
+
   void take_commands();
+  bool can_answer(dds_instance_handle_t writer, const ladder_msg_Command& c);
+  void forget_departed_senders();
   void write_outbox();
   void write_state();
   void refuse(const ladder_msg_Command& c, const std::string& reason);
@@ -577,6 +590,10 @@ class Io {
   std::uint64_t state_seq_ = 0, event_seq_ = 0, logged_events_ = 0;
   std::uint32_t generation_ = 0;
   Outbox out_;
+  std::unordered_map<dds_instance_handle_t, Sender> senders_;
+  std::size_t forget_above_ = 256;  // senders known before those that have left are forgotten
+  std::uint64_t pass_ = 0;
+  std::deque<std::pair<dds_instance_handle_t, ladder_msg_Command>> held_;  // not yet answerable, as they arrived
 };
 
 void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
@@ -585,30 +602,87 @@ void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
   ack_w_.write(a);
 }
 
+// Commands go to the physics thread in the order they arrived, with one exception: a sender's commands wait until
+// this server's ack and event writers have found a reader in the sender's participant (kHearingLimit at most).
+// Discovery can bring a client's command writer before its readers, and an ack written then reaches no one. The
+// commands of one sender keep their order.
 void Io::take_commands() {
   const std::string& id = sh_.config.sim_id;
-  std::vector<ladder_msg_Command> fresh;
-  command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t&) {
-    if (text_of(c.sim_id) == id) fresh.push_back(c);  // commands for other ladders on this domain are not ours
+  std::size_t arrived = 0;
+  command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t& info) {
+    if (text_of(c.sim_id) != id) return;  // commands for other ladders on this domain are not ours
+    held_.emplace_back(info.publication_handle, c);
+    ++arrived;
   });
-  if (fresh.empty()) return;
-  sh_.received.fetch_add(fresh.size());
-  std::vector<const ladder_msg_Command*> over;
-  {
-    std::lock_guard lock(sh_.inbox_mutex);
-    for (const ladder_msg_Command& c : fresh) {
-      if (sh_.inbox.size() >= sh_.config.queue)
-        over.push_back(&c);
-      else
-        sh_.inbox.push_back(c);
-    }
+  sh_.received.fetch_add(arrived);
+  if (held_.empty()) return;
+  if (senders_.size() > forget_above_) forget_departed_senders();
+  ++pass_;
+  // Sorted outside the inbox's lock, which the physics thread takes between steps.
+  const std::size_t queue = sh_.config.queue;
+  std::vector<ladder_msg_Command> ready, over;
+  std::deque<std::pair<dds_instance_handle_t, ladder_msg_Command>> still;
+  for (const auto& [writer, c] : held_) {
+    if (can_answer(writer, c))
+      ready.push_back(c);
+    else if (still.size() < queue)
+      still.emplace_back(writer, c);
+    else
+      over.push_back(c);  // more waiting than the queue holds: refused like a full queue
   }
-  sh_.inbox_cv.notify_one();
+  held_.swap(still);
+  if (!ready.empty()) {
+    {
+      std::lock_guard lock(sh_.inbox_mutex);
+      for (const ladder_msg_Command& c : ready) {
+        if (sh_.inbox.size() >= queue)
+          over.push_back(c);
+        else
+          sh_.inbox.push_back(c);
+      }
+    }
+    sh_.inbox_cv.notify_one();
+  }
   if (over.empty()) return;
   sh_.rate_limited.fetch_add(over.size());
-  spdlog::warn("rate limit: {} command(s) refused ({} already queued)", over.size(), sh_.config.queue);
-  for (const ladder_msg_Command* c : over)
-    refuse(*c, "rate limit: " + std::to_string(sh_.config.queue) + " commands are already waiting; send fewer");
+  spdlog::warn("rate limit: {} command(s) refused ({} already queued)", over.size(), queue);
+  for (const ladder_msg_Command& c : over)
+    refuse(c, "rate limit: " + std::to_string(queue) + " commands are already waiting; send fewer");
+}
+
+bool Io::can_answer(dds_instance_handle_t writer, const ladder_msg_Command& c) {
+  const auto [it, first] = senders_.try_emplace(writer);
+  Sender& s = it->second;
+  if (s.ready) return true;
+  const Clock::time_point now = Clock::now();
+  if (first) {
+    s.first_seen = now;
+    s.participant = transport::writer_participant(command_r_.entity(), writer);
+  }
+  if (s.checked == pass_) return false;  // asked already in this pass: its later commands wait with the first
+  s.checked = pass_;
+  s.ready = !s.participant || (ack_w_.matched_in(*s.participant) && event_w_.matched_in(*s.participant));
+  const std::string who = text_of(c.client_id);
+  if (s.ready) {
+    if (!first) spdlog::debug("client '{}': its readers found after {:.0f} ms; its commands go on", who,
+                              1e3 * seconds(now - s.first_seen));
+  } else if (now - s.first_seen >= kHearingLimit) {
+    s.ready = true;
+    spdlog::warn("client '{}': no ack or event reader of it found in {} s; its commands go on, and it may miss "
+                 "their answers", who, kHearingLimit.count());
+  } else if (first) {
+    spdlog::debug("client '{}': its commands wait until its ack and event readers are found", who);
+  }
+  return s.ready;
+}
+
+// Forgets the command writers that have left (each ladderctl run is one), keeping those with commands held.
+void Io::forget_departed_senders() {
+  std::vector<dds_instance_handle_t> keep = transport::matched_writers(command_r_.entity());
+  for (const auto& h : held_) keep.push_back(h.first);
+  std::sort(keep.begin(), keep.end());
+  std::erase_if(senders_, [&](const auto& s) { return !std::binary_search(keep.begin(), keep.end(), s.first); });
+  forget_above_ = std::max<std::size_t>(256, 2 * senders_.size());
 }
 
 void Io::write_outbox() {
@@ -779,6 +853,7 @@ void Io::run() {
     write_state();
     if (done) break;
   }
+  for (const auto& h : held_) refuse(h.second, "ladderd stopped before it could take this command");
 }
 
 using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;

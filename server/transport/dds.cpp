@@ -24,14 +24,18 @@ std::optional<dds_guid_t> participant_of(dds_entity_t e, dds_instance_handle_t i
   return p;
 }
 
-bool matched_in(dds_entity_t e, const dds_guid_t& participant, MatchedFn matched, MatchedDataFn data) {
+std::vector<dds_instance_handle_t> matched_handles(dds_entity_t e, MatchedFn matched) {
   std::vector<dds_instance_handle_t> handles(8);
   while (true) {  // the count may grow between two calls: ask again until the array held them all
     const auto n = static_cast<std::size_t>(check(matched(e, handles.data(), handles.size()), "matched endpoints"));
     const bool all = n <= handles.size();
     handles.resize(n);
-    if (all) break;
+    if (all) return handles;
   }
+}
+
+bool matched_in(dds_entity_t e, const dds_guid_t& participant, MatchedFn matched, MatchedDataFn data) {
+  const std::vector<dds_instance_handle_t> handles = matched_handles(e, matched);
   return std::any_of(handles.begin(), handles.end(), [&](dds_instance_handle_t ih) {
     const auto p = participant_of(e, ih, data);
     return p && same_participant(*p, participant);
@@ -44,6 +48,10 @@ bool same_participant(const dds_guid_t& a, const dds_guid_t& b) { return std::me
 
 std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer) {
   return participant_of(reader.get(), writer, dds_get_matched_publication_data);
+}
+
+std::vector<dds_instance_handle_t> matched_writers(const Entity& reader) {
+  return matched_handles(reader.get(), dds_get_matched_publications);
 }
 
 bool writer_matched_in(const Entity& writer, const dds_guid_t& participant) {

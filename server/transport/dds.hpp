@@ -99,6 +99,8 @@ bool same_participant(const dds_guid_t& a, const dds_guid_t& b);
 // The participant of the writer a reader's sample came from (dds_sample_info_t::publication_handle); nullopt when
 // the reader is no longer matched with that writer.
 std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer);
+// The writers a reader is matched with now (their handles are those of dds_sample_info_t::publication_handle).
+std::vector<dds_instance_handle_t> matched_writers(const Entity& reader);
 // Whether a writer is matched with a reader in `participant`, or a reader with a writer in it.
 bool writer_matched_in(const Entity& writer, const dds_guid_t& participant);
 bool reader_matched_in(const Entity& reader, const dds_guid_t& participant);

@@ -523,6 +523,80 @@ TEST_F(Server, AClientIsReadyOnlyWhenItsOwnServerTakesCommands) {
   EXPECT_EQ(received, std::vector<std::uint64_t>{sent});
 }
 
+// A client made by hand, with a command writer only: its ack and event readers come when the test says.
+struct BareSender {
+  BareSender(int domain, std::string id)
+      : sim_id(std::move(id)),
+        participant(transport::make_participant(static_cast<dds_domainid_t>(domain))),
+        topics(participant),
+        command_w(participant, topics.command, transport::Profile::Command) {
+    const auto deadline = Clock::now() + kAnswer;
+    while (command_w.matched() == 0 && Clock::now() < deadline) std::this_thread::sleep_for(Millis(5));
+  }
+  void pause(std::uint64_t id) {
+    ladder_msg_Command c = cmd::pause();
+    transport::copy_text(c.sim_id, sim_id);
+    transport::copy_text(c.client_id, "bare");
+    c.command_id = id;
+    command_w.write(c);
+  }
+  void add_readers() {
+    ack_r.emplace(participant, topics.ack, transport::Profile::CommandAck);
+    event_r.emplace(participant, topics.event, transport::Profile::Event);
+  }
+  // The ids of the acks that reach it within kAnswer, once one has.
+  std::vector<std::uint64_t> acked() {
+    std::vector<std::uint64_t> ids;
+    const auto deadline = Clock::now() + kAnswer;
+    while (ids.empty() && Clock::now() < deadline) {
+      ack_r->take([&](const ladder_msg_CommandAck& a, const dds_sample_info_t&) {
+        if (std::string(a.client_id) == "bare" && a.accepted) ids.push_back(a.command_id);
+      });
+      std::this_thread::sleep_for(Millis(5));
+    }
+    return ids;
+  }
+
+  std::string sim_id;
+  transport::Entity participant;
+  transport::Topics topics;
+  transport::Writer<ladder_msg_Command> command_w;
+  std::optional<transport::Reader<ladder_msg_CommandAck>> ack_r;
+  std::optional<transport::Reader<ladder_msg_Event>> event_r;
+};
+
+// The server side of the same race: a client's command can arrive before the server has discovered the client's
+// ack and event readers, and an ack written then would reach no one. The server holds a sender's commands until its
+// ack and event writers match a reader in the sender's participant (2 s at most). The client here creates its
+// readers 300 ms after sending, a delay that discovery alone produces only by chance.
+TEST_F(Server, ACommandWaitsUntilItsSenderCanHearTheAnswer) {
+  start();
+  BareSender bare(domain_, sim_id_);
+  ASSERT_EQ(bare.command_w.matched(), 1u);
+  bare.pause(7);
+  std::this_thread::sleep_for(Millis(300));
+  // Not applied yet: a state that left the server after the 300 ms still runs.
+  const std::uint64_t seq = c().wait_state([](const client::State&) { return true; }, kAnswer)->seq;
+  const auto later = c().wait_state([&](const client::State& st) { return st.seq > seq; }, kAnswer);
+  ASSERT_TRUE(later && !later->paused) << "the pause was applied before its sender could hear the answer";
+  bare.add_readers();
+  EXPECT_EQ(bare.acked(), std::vector<std::uint64_t>{7});
+  EXPECT_TRUE(c().wait_state([](const client::State& st) { return st.paused; }, kAnswer));
+}
+
+// A sender that never makes the readers waits no more than 2 s: its command is then taken, and the log says why.
+TEST_F(Server, ACommandOfASenderWithoutReadersIsTakenAfterTwoSeconds) {
+  start();
+  BareSender bare(domain_, sim_id_);
+  ASSERT_EQ(bare.command_w.matched(), 1u);
+  const auto sent = Clock::now();
+  bare.pause(1);
+  ASSERT_TRUE(c().wait_state([](const client::State& st) { return st.paused; }, kAnswer + Millis(2000)));
+  EXPECT_GE(Clock::now() - sent, Millis(2000)) << "taken before the 2 s were over";
+  EXPECT_NE(server_->log().find("client 'bare': no ack or event reader of it found in 2 s"), std::string::npos)
+      << server_->log();
+}
+
 // A client drops a State whose sequences disagree (a broken or hostile publisher: five numbers for two poses),
 // counts it, and takes the next good one.
 TEST(ClientLibrary, DropsAStateWhoseSequencesDisagree) {
