@@ -154,8 +154,10 @@ void Client::poll() {
       return;
     }
     if (info.publication_handle != server_writer_) {  // the first state, or a restarted server's
-      server_ = transport::writer_participant(state_r_.entity(), info.publication_handle);
-      server_writer_ = info.publication_handle;
+      if (const auto p = transport::writer_participant(state_r_.entity(), info.publication_handle)) {
+        server_ = p;
+        server_writer_ = info.publication_handle;
+      }
     }
     State& st = state_ ? *state_ : state_.emplace();  // reuses the vectors' storage
     st.latency = 1e-9 * static_cast<double>(dds_time() - info.source_timestamp);
@@ -218,13 +220,22 @@ bool Client::wait(Millis timeout, const std::function<bool()>& done) {
   }
 }
 
+bool Client::connected() {
+  if (!state_ || !scene_) return false;
+  if (scene_->replay) return true;  // a replay (ladderctl replay) publishes but takes no commands
+  if (!server_) return false;
+  // The lookups copy every matched endpoint's data: the answer is kept while the server and the count stay.
+  const std::uint32_t readers = command_w_.matched();
+  if (connected_writer_ == server_writer_ && connected_readers_ == readers) return true;
+  if (!(command_w_.matched_in(*server_) && ack_r_.matched_in(*server_) && event_r_.matched_in(*server_)))
+    return false;
+  connected_writer_ = server_writer_;
+  connected_readers_ = readers;
+  return true;
+}
+
 bool Client::wait_for_server(Millis timeout) {
-  // A replay (ladderctl replay) publishes but takes no commands.
-  return wait(timeout, [&] {
-    return state_.has_value() && scene_.has_value() &&
-           (scene_->replay || (server_ && command_w_.matched_in(*server_) && ack_r_.matched_in(*server_) &&
-                               event_r_.matched_in(*server_)));
-  });
+  return wait(timeout, [&] { return connected(); });
 }
 
 std::uint64_t Client::send(ladder_msg_Command c) {

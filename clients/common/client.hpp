@@ -130,6 +130,7 @@ class Client {
 
  private:
   bool wait(Millis timeout, const std::function<bool()>& done);
+  bool connected();
 
   std::string sim_id_, client_id_;
   transport::Entity participant_;
@@ -149,6 +150,9 @@ class Client {
   // The participant of the writer of our latest State (the server's), and that writer.
   std::optional<dds_guid_t> server_;
   dds_instance_handle_t server_writer_ = 0;
+  // connected() said yes for this server's writer while the command writer had this many readers.
+  dds_instance_handle_t connected_writer_ = 0;
+  std::uint32_t connected_readers_ = 0;
   std::uint64_t state_count_ = 0;
   std::uint64_t states_malformed_ = 0;
   std::optional<SceneInfo> scene_;

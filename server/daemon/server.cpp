@@ -555,18 +555,22 @@ class Io {
   void run();
 
  private:
-  // A client's command writer, and whether this server's ack and event writers have found its participant.
+  // A client's command writer: whether this server can answer it yet (its ack and event writers have found a
+  // reader in the writer's participant), and its commands meanwhile.
   struct Sender {
+    std::string client;                     // the client id of its first command, for the log
     std::optional<dds_guid_t> participant;  // none: the writer had left when its first command was read
-    Clock::time_point first_seen;
-    std::uint64_t checked = 0;  // the last take_commands pass that asked
+    Clock::time_point first_seen, next_check;
     bool ready = false;
+    std::deque<ladder_msg_Command> held;  // in the order they came
   };
-  static constexpr std::chrono::seconds kHearingLimit{2};  // the longest a sender's commands wait to be answerable
 
   void take_commands();
-  bool can_answer(dds_instance_handle_t writer, const ladder_msg_Command& c);
+  Sender& sender(dds_instance_handle_t writer, const ladder_msg_Command& c);
+  void check(Sender& s, Clock::time_point now);
+  void release_answerable(std::vector<ladder_msg_Command>& ready);
   void forget_departed_senders();
+  void refuse_leftovers();
   void write_outbox();
   void write_state();
   void refuse(const ladder_msg_Command& c, const std::string& reason);
@@ -591,9 +595,8 @@ class Io {
   std::uint32_t generation_ = 0;
   Outbox out_;
   std::unordered_map<dds_instance_handle_t, Sender> senders_;
-  std::size_t forget_above_ = 256;  // senders known before those that have left are forgotten
-  std::uint64_t pass_ = 0;
-  std::deque<std::pair<dds_instance_handle_t, ladder_msg_Command>> held_;  // not yet answerable, as they arrived
+  std::vector<dds_instance_handle_t> waiting_;  // the senders not ready yet
+  std::size_t forget_above_ = 256;              // senders known before those that have left are forgotten
 };
 
 void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
@@ -603,34 +606,27 @@ void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
 }
 
 // Commands go to the physics thread in the order they arrived, with one exception: a sender's commands wait until
-// this server's ack and event writers have found a reader in the sender's participant (kHearingLimit at most).
-// Discovery can bring a client's command writer before its readers, and an ack written then reaches no one. The
-// commands of one sender keep their order.
+// this server's ack and event writers have found a reader in the sender's participant (commands.reader_wait at
+// most). Discovery can bring a client's command writer before its readers, and an ack written then reaches no one.
+// The commands of one sender keep their order.
 void Io::take_commands() {
   const std::string& id = sh_.config.sim_id;
+  const std::size_t queue = sh_.config.queue;
+  std::vector<ladder_msg_Command> ready, over;
   std::size_t arrived = 0;
   command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t& info) {
     if (text_of(c.sim_id) != id) return;  // commands for other ladders on this domain are not ours
-    held_.emplace_back(info.publication_handle, c);
     ++arrived;
+    Sender& s = sender(info.publication_handle, c);
+    if (s.ready)
+      ready.push_back(c);
+    else if (s.held.size() < queue)
+      s.held.push_back(c);
+    else
+      over.push_back(c);  // a sender not yet answerable holds no more than the queue
   });
   sh_.received.fetch_add(arrived);
-  if (held_.empty()) return;
-  if (senders_.size() > forget_above_) forget_departed_senders();
-  ++pass_;
-  // Sorted outside the inbox's lock, which the physics thread takes between steps.
-  const std::size_t queue = sh_.config.queue;
-  std::vector<ladder_msg_Command> ready, over;
-  std::deque<std::pair<dds_instance_handle_t, ladder_msg_Command>> still;
-  for (const auto& [writer, c] : held_) {
-    if (can_answer(writer, c))
-      ready.push_back(c);
-    else if (still.size() < queue)
-      still.emplace_back(writer, c);
-    else
-      over.push_back(c);  // more waiting than the queue holds: refused like a full queue
-  }
-  held_.swap(still);
+  if (!waiting_.empty()) release_answerable(ready);
   if (!ready.empty()) {
     {
       std::lock_guard lock(sh_.inbox_mutex);
@@ -650,39 +646,73 @@ void Io::take_commands() {
     refuse(c, "rate limit: " + std::to_string(queue) + " commands are already waiting; send fewer");
 }
 
-bool Io::can_answer(dds_instance_handle_t writer, const ladder_msg_Command& c) {
-  const auto [it, first] = senders_.try_emplace(writer);
-  Sender& s = it->second;
-  if (s.ready) return true;
-  const Clock::time_point now = Clock::now();
-  if (first) {
-    s.first_seen = now;
-    s.participant = transport::writer_participant(command_r_.entity(), writer);
+// The sender of a command from `writer`, known or new. A new one is checked at once: usually it is ready.
+Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c) {
+  if (const auto known = senders_.find(writer); known != senders_.end()) return known->second;
+  if (senders_.size() >= forget_above_) forget_departed_senders();
+  Sender& s = senders_[writer];
+  s.client = text_of(c.client_id);
+  s.participant = transport::writer_participant(command_r_.entity(), writer);
+  s.first_seen = Clock::now();
+  check(s, s.first_seen);
+  if (!s.ready) {
+    waiting_.push_back(writer);
+    spdlog::debug("client '{}': its commands wait until its ack and event readers are found", s.client);
   }
-  if (s.checked == pass_) return false;  // asked already in this pass: its later commands wait with the first
-  s.checked = pass_;
-  s.ready = !s.participant || (ack_w_.matched_in(*s.participant) && event_w_.matched_in(*s.participant));
-  const std::string who = text_of(c.client_id);
-  if (s.ready) {
-    if (!first) spdlog::debug("client '{}': its readers found after {:.0f} ms; its commands go on", who,
-                              1e3 * seconds(now - s.first_seen));
-  } else if (now - s.first_seen >= kHearingLimit) {
-    s.ready = true;
-    spdlog::warn("client '{}': no ack or event reader of it found in {} s; its commands go on, and it may miss "
-                 "their answers", who, kHearingLimit.count());
-  } else if (first) {
-    spdlog::debug("client '{}': its commands wait until its ack and event readers are found", who);
-  }
-  return s.ready;
+  return s;
 }
 
-// Forgets the command writers that have left (each ladderctl run is one), keeping those with commands held.
+void Io::check(Sender& s, Clock::time_point now) {
+  s.next_check = now + std::chrono::milliseconds(2);  // the lookups cost a copy per matched reader
+  s.ready = !s.participant || (ack_w_.matched_in(*s.participant) && event_w_.matched_in(*s.participant));
+  const double waited = seconds(now - s.first_seen);
+  if (s.ready) {
+    if (waited > 0) spdlog::debug("client '{}': its readers found after {:.0f} ms", s.client, 1e3 * waited);
+  } else if (waited >= sh_.config.reader_wait) {
+    s.ready = true;
+    spdlog::warn("client '{}': its ack or event reader not found in {:g} s; its commands go on, and it may miss "
+                 "their answers",
+                 s.client, sh_.config.reader_wait);
+  }
+}
+
+// Moves the commands of the senders that have become ready to `ready`, in their order.
+void Io::release_answerable(std::vector<ladder_msg_Command>& ready) {
+  const Clock::time_point now = Clock::now();
+  std::erase_if(waiting_, [&](dds_instance_handle_t writer) {
+    Sender& s = senders_.at(writer);
+    if (now < s.next_check) return false;
+    check(s, now);
+    if (!s.ready) return false;
+    ready.insert(ready.end(), s.held.begin(), s.held.end());
+    s.held.clear();
+    return true;
+  });
+}
+
+// Forgets the command writers that have left (each ladderctl run is one), keeping those still waiting.
 void Io::forget_departed_senders() {
   std::vector<dds_instance_handle_t> keep = transport::matched_writers(command_r_.entity());
-  for (const auto& h : held_) keep.push_back(h.first);
+  keep.insert(keep.end(), waiting_.begin(), waiting_.end());
   std::sort(keep.begin(), keep.end());
   std::erase_if(senders_, [&](const auto& s) { return !std::binary_search(keep.begin(), keep.end(), s.first); });
   forget_above_ = std::max<std::size_t>(256, 2 * senders_.size());
+}
+
+// At the stop: the commands the physics thread did not take, and those still held, are refused. (A sender still
+// held may not hear it.)
+void Io::refuse_leftovers() {
+  std::deque<ladder_msg_Command> left;
+  {
+    std::lock_guard lock(sh_.inbox_mutex);
+    left.swap(sh_.inbox);
+  }
+  for (dds_instance_handle_t writer : waiting_) {
+    std::deque<ladder_msg_Command>& held = senders_.at(writer).held;
+    left.insert(left.end(), held.begin(), held.end());
+    held.clear();
+  }
+  for (const ladder_msg_Command& c : left) refuse(c, "ladderd stopped before it could take this command");
 }
 
 void Io::write_outbox() {
@@ -853,7 +883,7 @@ void Io::run() {
     write_state();
     if (done) break;
   }
-  for (const auto& h : held_) refuse(h.second, "ladderd stopped before it could take this command");
+  refuse_leftovers();
 }
 
 using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;

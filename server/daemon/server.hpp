@@ -22,6 +22,9 @@ struct ServerConfig {
   Limits limits;
   std::size_t queue = 1000;       // commands waiting for the physics thread; beyond it they are refused
   std::size_t per_tick = 100;     // commands applied per tick at most
+  // [s] the longest a new client's commands wait for this server to find its ack and event readers (an answer
+  // written before then would reach no one); 0 = not at all.
+  double reader_wait = 2.0;
   std::string record;             // LCM session log to write; empty = none
   double checkpoint_every = 1.0;  // [s of sim time] between checkpoints in the log
   // SCHED_FIFO priority of the physics thread, 1 to 99; 0 = the normal scheduler. Needs CAP_SYS_NICE (or root): when
