@@ -199,12 +199,12 @@ SceneOut scene_out(const Session& s) {
 
 class Physics {
  public:
-  Physics(Shared& shared, std::unique_ptr<Session> session, bool tick_log)
+  Physics(Shared& shared, std::unique_ptr<Session> session)
       : sh_(shared),
         owned_(std::move(session)),
         session_(*owned_),
         recording_(!shared.config.record.empty()),
-        tick_log_(tick_log) {
+        tick_log_(!shared.config.tick_log.empty()) {
     session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
     scene_generation_ = session_.generation();
   }
@@ -949,7 +949,7 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   const bool realtime =
       config.realtime_priority > 0 && run_realtime("I/O", std::max(1, config.realtime_priority - 1));
   Io io(shared, log.get(), tick_log.get());
-  Physics physics(shared, std::move(session), tick_log != nullptr);
+  Physics physics(shared, std::move(session));
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
                "factor {}",
                scene.name, config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,
