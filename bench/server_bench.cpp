@@ -289,7 +289,8 @@ int main(int argc, char** argv) {
                   percentile(late_us, 0.99), percentile(late_us, 1.0), over_200, missed, median(p99),
                   percentile(p99, 1.0), median(over(&ladder_msg_Stats::real_time_factor)),
                   static_cast<double>(states) / subs / seconds, percentile(lat, 0.5), percentile(lat, 0.99), gaps,
-                  static_cast<unsigned long long>(dropped), percentile(step_us, 0.5), percentile(step_us, 0.99), steal_to - steal_from);
+                  static_cast<unsigned long long>(dropped), percentile(step_us, 0.5), percentile(step_us, 0.99),
+                  steal_to - steal_from);
       std::fflush(stdout);
     }
   }

@@ -16,6 +16,8 @@ namespace {
 using MatchedFn = dds_return_t (*)(dds_entity_t, dds_instance_handle_t*, size_t);
 using MatchedDataFn = dds_builtintopic_endpoint_t* (*)(dds_entity_t, dds_instance_handle_t);
 
+bool same_participant(const dds_guid_t& a, const dds_guid_t& b) { return std::memcmp(a.v, b.v, sizeof a.v) == 0; }
+
 std::optional<dds_guid_t> participant_of(dds_entity_t e, dds_instance_handle_t ih, MatchedDataFn data) {
   dds_builtintopic_endpoint_t* ep = data(e, ih);
   if (ep == nullptr) return std::nullopt;  // unmatched in the meantime
@@ -43,8 +45,6 @@ bool matched_in(dds_entity_t e, const dds_guid_t& participant, MatchedFn matched
 }
 
 }  // namespace
-
-bool same_participant(const dds_guid_t& a, const dds_guid_t& b) { return std::memcmp(a.v, b.v, sizeof a.v) == 0; }
 
 std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer) {
   return participant_of(reader.get(), writer, dds_get_matched_publication_data);

@@ -95,7 +95,6 @@ Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc,
 
 // Which participant a remote endpoint belongs to, from the built-in topics' data. A client uses this to know that
 // its command writer has found the reader of the server whose states it sees, and not only some other server's.
-bool same_participant(const dds_guid_t& a, const dds_guid_t& b);
 // The participant of the writer a reader's sample came from (dds_sample_info_t::publication_handle); nullopt when
 // the reader is no longer matched with that writer.
 std::optional<dds_guid_t> writer_participant(const Entity& reader, dds_instance_handle_t writer);
