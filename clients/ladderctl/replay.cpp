@@ -14,6 +14,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <thread>
 #include <vector>
 
@@ -132,6 +133,8 @@ int replay(const ReplayOptions& o) {
   std::int64_t first_utime = -1;
   std::uint64_t states = 0, events = 0, bad_states = 0;
   double last_t = 0;
+  std::map<std::int32_t, std::int32_t> blocks;  // of each generation whose scene record has come
+  int rc = 0;
   try {
     while (!g_stop) {
       const auto e = reader->next();
@@ -146,9 +149,19 @@ int replay(const ReplayOptions& o) {
           std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(50)));
       };
       if (e->channel == transport::kSceneChannel) {
-        out.scene(reader->decode<ladderlcm::scene_t>(*e));  // always, so a viewer knows what it sees
+        const auto s = reader->decode<ladderlcm::scene_t>(*e);
+        if (const auto b = blocks.try_emplace(s.generation, s.blocks).first; b->second != s.blocks)
+          reader->refuse(*e, "scene_t", "generation " + std::to_string(s.generation) + " has " +
+                                            std::to_string(s.blocks) + " blocks here, " + std::to_string(b->second) +
+                                            " in its first scene record");
+        out.scene(s);  // always, so a viewer knows what it sees
       } else if (e->channel == transport::kStateChannel) {
         const auto s = reader->decode<ladderlcm::state_t>(*e);
+        // A viewer draws a state on its scene: their numbers of blocks must agree. (A state may come just before
+        // the scene record of its generation: the two reach the recorder by different paths.)
+        if (const auto b = blocks.find(s.generation); b != blocks.end() && b->second != s.num_blocks)
+          reader->refuse(*e, "state_t", "a state of " + std::to_string(s.num_blocks) + " blocks in a scene of " +
+                                            std::to_string(b->second));
         if (s.sim_time + 1e-9 < o.from) continue;
         wait_for(e->utime);
         if (!out.state(s)) {
@@ -165,8 +178,9 @@ int replay(const ReplayOptions& o) {
         ++events;
       }
     }
-  } catch (const std::exception& ex) {
-    std::cerr << "ladderctl: " << ex.what() << "\n";
+  } catch (const std::exception& ex) {  // a bad event: what came before it was played
+    std::cerr << "ladderctl: " << ex.what() << "; the replay stops there\n";
+    rc = 2;
   }
   sigaction(SIGINT, &old, nullptr);
   if (!reader->damage().empty()) std::cerr << "ladderctl: " << o.log << ": " << reader->damage() << "\n";
@@ -177,7 +191,7 @@ int replay(const ReplayOptions& o) {
               static_cast<unsigned long long>(events), last_t);
   // Transient-local data lives as long as its writer: give late viewers a moment to take the last state.
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  return 0;
+  return rc;
 }
 
 }  // namespace ladder::ctl

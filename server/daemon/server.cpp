@@ -207,6 +207,8 @@ class Physics {
         tick_log_(!shared.config.tick_log.empty()) {
     session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
     scene_generation_ = session_.generation();
+    accepted_ = session_.taken_before().accepted;  // a resumed session numbers on from its log
+    refused_ = session_.taken_before().refused;
   }
 
   void run(const std::atomic<bool>& stop);
@@ -740,6 +742,12 @@ void Io::write_outbox() {
     copy_text(m.options, s.options);
     scene_w_.write(m);
   }
+  // A command is in the log, flushed to the file, before its ack goes out: an acknowledged command survives a
+  // kill -9 (--resume replays it).
+  if (log_) record_outbox();
+  if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)))
+    spdlog::error("session log {}: writing it failed or took over 5 s; commands are acknowledged before they are "
+                  "in it", log_->path());
   for (const ladder_msg_CommandAck& a : out_.acks) ack_w_.write(a);
   for (const EventOut& e : out_.events) {
     ladder_msg_Event m{};
@@ -754,7 +762,6 @@ void Io::write_outbox() {
   }
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) stats_w_.write(s);
-  if (log_) record_outbox();
   if (tick_log_) write_ticks();
   out_.ticks.clear();
   out_.commands.clear();
