@@ -4,6 +4,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
@@ -55,8 +56,11 @@ class Cursor {
       throw Bad("string " + std::string(field) + " of " + std::to_string(len - 1) + " bytes is longer than " +
                 std::to_string(max) + " (the most a log's " + field + " may hold)");
     need(len, field);
-    if (data_[at_ + len - 1] != 0) throw Bad("string " + std::string(field) + " does not end with a NUL");
-    std::string s(reinterpret_cast<const char*>(data_.data() + at_), len - 1);
+    const char* p = reinterpret_cast<const char*>(data_.data() + at_);
+    if (p[len - 1] != 0) throw Bad("string " + std::string(field) + " does not end with a NUL");
+    // lcm-gen's encoder writes C strings: a NUL inside one is not something it writes (and would cut it short).
+    if (std::memchr(p, 0, len - 1)) throw Bad("string " + std::string(field) + " has a NUL inside it");
+    std::string s(p, len - 1);
     at_ += len;
     return s;
   }
