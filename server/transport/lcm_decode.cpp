@@ -214,7 +214,7 @@ std::string a_step(const char* field, std::int64_t v) {
   if (v < 0) return not_negative(field, v);
   if (v > kLogMaxStep)
     return std::string(field) + " = " + std::to_string(v) + " is beyond " + std::to_string(kLogMaxStep) +
-           " (the most steps of a scene: " + std::to_string(kLogMaxSimTime) + " s at dt = 1e-7 s)";
+           " (the most steps of a scene: 1e7 s at dt = 1e-7 s)";
   return {};
 }
 std::string a_time(const char* field, double t) {

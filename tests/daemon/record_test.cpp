@@ -437,7 +437,9 @@ TEST_F(Record, HostileLogsAreRefusedByEveryReaderWithinFiveSeconds) {
       EXPECT_NE(r.output.find(bad + ": " + where), std::string::npos) << c.name << ": " << reader << "\n"
                                                                        << r.output;
       EXPECT_NE(r.output.find(c.why), std::string::npos) << c.name << ": " << reader << "\n" << r.output;
-      std::printf("%s log, %s: exit %d in %.2f s\n", c.name, name, r.code, took);
+      const std::size_t line = r.output.find(bad + ": ");
+      std::printf("%s log, %s: exit %d in %.2f s: %s\n", c.name, name, r.code, took,
+                  r.output.substr(line, r.output.find('\n', line) - line).c_str());
     }
   }
   // A command or a checkpoint at step 2^62: refused too (the re-run would step toward it forever).
@@ -479,10 +481,10 @@ TEST_F(Record, AStateBeyondWhatItsTimeAndCheckpointsAllowIsRefused) {
       << r.output;
 }
 
-// kill -9 right after the last of 30 acknowledged commands (live settings and pokes): --resume applies every one
-// of them. The commands logged after the last checkpoint are replayed at their recorded steps, the resumed server
-// numbers on from the log, and the live setting is the last one set. (The old --resume stopped at the last
-// checkpoint, and lost every command after it.)
+// kill -9 right after the last of 30 acknowledged commands (live settings and pokes, half of them before the
+// checkpoint at 1 s and half after): --resume applies every one of them. The commands logged after the last
+// checkpoint are replayed at their recorded steps, the resumed server numbers on from the log, and the live setting
+// is the last one set. (The old --resume stopped at the last checkpoint, and lost every command after it.)
 TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   start({"--record", log_});
   accepted(cmd::tip());
@@ -498,7 +500,8 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
     }
     const client::Ack a = client_->call(c, kAnswer);
     ASSERT_TRUE(a.accepted) << a.reason;
-    last_acked = std::max(last_acked, a.command_seq);
+    last_acked = applied_ = std::max(last_acked, a.command_seq);
+    if (i == 15) run_until(1.05);  // half of them before the checkpoint at 1 s, half after
   }
   server_->signal(SIGKILL);  // at once: no time for a 50 ms batch of the log writer
   server_->wait_exit(Millis(5000));
@@ -511,6 +514,7 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   EXPECT_EQ(log.commands.size(), 31u);
   EXPECT_EQ(log.commands.back().command_seq, 31);
   const std::int64_t at_checkpoint = log.checkpoints.back().commands_applied;
+  ASSERT_GE(log.checkpoints.size(), 2u);
   const auto after = std::count_if(log.commands.begin(), log.commands.end(),
                                    [&](const ladderlcm::command_t& c) { return c.command_seq > at_checkpoint; });
 
@@ -518,6 +522,8 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   client_.reset();
   sim_id_ += "-resumed";
   start({"--resume", log_});
+  EXPECT_GT(after, 0);
+  EXPECT_LT(after, 31);
   const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->commands_applied, last_acked);
@@ -527,6 +533,9 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   EXPECT_NE(server_->log().find("after replaying " + std::to_string(after) + " commands past the last checkpoint"),
             std::string::npos)
       << server_->log();
+  const std::string out = server_->log();
+  const std::size_t line = out.find("resumed from");
+  if (line != std::string::npos) std::printf("%s\n", out.substr(line, out.find('\n', line) - line).c_str());
   // The next command goes on from the log's numbering.
   const client::Ack a = client_->call(cmd::resume(), kAnswer);
   EXPECT_TRUE(a.accepted) << a.reason;
