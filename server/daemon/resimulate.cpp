@@ -303,6 +303,9 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       if (gen < g && (next_command >= log.commands.size() || log.commands[next_command].generation != gen ||
                       log.commands[next_command].step < step))
         return false;
+      // As the server does: paused, a step is one that a step command ordered (so that a resumed session keeps
+      // only the ordered steps not yet taken where the log ends).
+      if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
       session->step();
       ++r.steps;
       if (progress && r.steps % 10000 == 0) progress(r.steps, r.states);
