@@ -243,10 +243,10 @@ std::string first(std::initializer_list<std::string> checks) {
 }  // namespace
 
 std::string check_record(const ladderlcm::scene_t& m) {
-  std::string masses;
-  for (std::size_t i = 0; i < m.masses.size() && masses.empty(); ++i)
+  char masses[96] = "";
+  for (std::size_t i = 0; i < m.masses.size() && !masses[0]; ++i)
     if (!(m.masses[i] > 0) || !std::isfinite(m.masses[i]))
-      masses = "masses[" + std::to_string(i) + "] = " + std::to_string(m.masses[i]) + " is not a mass (> 0)";
+      std::snprintf(masses, sizeof masses, "masses[%zu] = %g is not a mass (finite, > 0)", i, m.masses[i]);
   char dt[96] = "";
   if (!(m.dt >= kLogMinDt && m.dt <= kLogMaxDt))
     std::snprintf(dt, sizeof dt, "dt = %g s is outside sim.dt's range %g .. %g s", m.dt, kLogMinDt, kLogMaxDt);

@@ -93,7 +93,8 @@ LogReader::LogReader(const std::string& path) : path_(path) {
   check_start();
 }
 
-LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name) : path_(std::move(name)), bytes_(std::move(bytes)) {
+LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name)
+    : path_(std::move(name)), bytes_(std::move(bytes)) {
   check_start();
 }
 

@@ -184,7 +184,8 @@ TEST(LcmDecode, CountsAreCheckedAgainstTheirMaximumAndTheBytesLeftBeforeAnyAlloc
   EXPECT_EQ(decode<ladderlcm::scene_t>(bad),
             "num_overrides = 268435457 is more than 10000 (the most overrides a log may hold)");
   put(bad, overrides, 9000, 4);
-  EXPECT_TRUE(has(decode<ladderlcm::scene_t>(bad), "num_overrides = 9000 needs 45000 bytes, but ")) << decode<ladderlcm::scene_t>(bad);
+  EXPECT_TRUE(has(decode<ladderlcm::scene_t>(bad), "num_overrides = 9000 needs 45000 bytes, but "))
+      << decode<ladderlcm::scene_t>(bad);
   // blocks: after the overrides and clear_timeline.
   std::size_t at = overrides + 4;
   for (const std::string& o : s.overrides) at += 4 + o.size() + 1;
@@ -202,7 +203,8 @@ TEST(LcmDecode, CountsAreCheckedAgainstTheirMaximumAndTheBytesLeftBeforeAnyAlloc
   put(bad, sim_id, 0, 4);
   EXPECT_EQ(decode<ladderlcm::scene_t>(bad), "string sim_id has length 0 (at least 1)");
   put(bad, sim_id, 60000, 4);
-  EXPECT_TRUE(has(decode<ladderlcm::scene_t>(bad), "sim_id needs 60000 byte(s), but ")) << decode<ladderlcm::scene_t>(bad);
+  EXPECT_TRUE(has(decode<ladderlcm::scene_t>(bad), "sim_id needs 60000 byte(s), but "))
+      << decode<ladderlcm::scene_t>(bad);
   bad = sb;
   bad[sim_id + 4 + s.sim_id.size()] = 'x';  // where the NUL was
   EXPECT_EQ(decode<ladderlcm::scene_t>(bad), "string sim_id does not end with a NUL");
@@ -238,7 +240,7 @@ TEST(LcmDecode, TheFingerprintBooleansAndValuesAreChecked) {
   EXPECT_EQ(decode<ladderlcm::scene_t>(encode(sc)), "dt = 0 s is outside sim.dt's range 1e-07 .. 0.1 s");
   sc = a_scene();
   sc.masses[1] = -1;
-  EXPECT_TRUE(has(decode<ladderlcm::scene_t>(encode(sc)), "masses[1] = -1")) << decode<ladderlcm::scene_t>(encode(sc));
+  EXPECT_EQ(decode<ladderlcm::scene_t>(encode(sc)), "masses[1] = -1 is not a mass (finite, > 0)");
 
   ladderlcm::command_t c = a_command();
   c.b = INFINITY;
