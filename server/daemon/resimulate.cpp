@@ -149,11 +149,15 @@ std::string check_step(const std::map<std::int32_t, GenerationInfo>& gens, const
   const auto after = std::upper_bound(cps.begin(), cps.end(), step);
   const std::int64_t anchor = after == cps.begin() ? 0 : *(after - 1);
   const auto most = static_cast<std::int64_t>(std::ceil(kCheckpointGap / info.min_dt)) + 2;
-  if (step - anchor > most)
-    return std::string("a ") + what + " at " + place(g, step) + ", " + std::to_string(step - anchor) +
-           " steps after the checkpoint before it (step " + std::to_string(anchor) +
-           "): the server writes one every " + std::to_string(ServerConfig{}.checkpoint_every) +
-           " s of sim time, at most " + std::to_string(most) + " steps at this scene's dt";
+  if (step - anchor > most) {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "a %s at %s, %lld steps after the checkpoint before it (step %lld): the server writes one every "
+                  "%g s of sim time, so a step lies at most %lld steps past one at this scene's dt",
+                  what, place(g, step).c_str(), static_cast<long long>(step - anchor),
+                  static_cast<long long>(anchor), ServerConfig{}.checkpoint_every, static_cast<long long>(most));
+    return buf;
+  }
   return {};
 }
 
