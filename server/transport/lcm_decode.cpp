@@ -79,12 +79,20 @@ class Cursor {
   }
   template <class T>
   void array(const char* field, std::vector<T>& out, std::int32_t n) {
-    need(static_cast<std::size_t>(n) * sizeof(T), field);  // the caller's count() bounds n
+    const std::size_t bytes = static_cast<std::size_t>(n) * sizeof(T);  // the caller's count() bounds n
+    need(bytes, field);
     out.resize(static_cast<std::size_t>(n));
+    // One check for the whole array, then a plain loop (a state of 10 000 blocks is 60 000 values).
+    using U = std::conditional_t<sizeof(T) == 8, std::uint64_t,
+                                 std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint8_t>>;
+    const std::uint8_t* p = data_.data() + at_;
     for (T& v : out) {
-      if constexpr (std::is_floating_point_v<T>) v = real(field);
-      else v = integer<T>(field);
+      U u = 0;
+      for (std::size_t i = 0; i < sizeof(T); ++i) u = static_cast<U>((u << 8) | p[i]);
+      v = std::bit_cast<T>(u);
+      p += sizeof(T);
     }
+    at_ += bytes;
   }
   void fingerprint(std::int64_t expected, const char* type) {
     const auto h = integer<std::int64_t>("fingerprint");
