@@ -251,6 +251,32 @@ TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
   EXPECT_NE(r.output.find("replayed " + std::to_string(states - 1) + " states"), std::string::npos) << r.output;
 }
 
+// The same across a reset: the resumed server stands in the reset's generation, with the settings made after it.
+TEST_F(Record, ResumeAfterKillNineGoesOnInTheGenerationOfTheLastReset) {
+  start({"--record", log_});
+  accepted(cmd::tip());
+  run_until(0.3);
+  accepted(cmd::reset());
+  for (const char* v : {"0.11", "0.12", "0.13"}) accepted(cmd::set(std::string("damping.linear=") + v));
+  server_->signal(SIGKILL);
+  server_->wait_exit(Millis(5000));
+  const std::uint64_t last_acked = applied_;
+  ASSERT_EQ(last_acked, 5u);
+
+  server_.reset();
+  client_.reset();
+  sim_id_ += "-resumed";
+  start({"--resume", log_});
+  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->generation, 1u);
+  EXPECT_EQ(s->commands_applied, last_acked);
+  const auto info = client_->wait_scene_info(kAnswer);
+  ASSERT_TRUE(info.has_value());
+  EXPECT_NE(info->options.find("damping.linear=0.13\n"), std::string::npos) << info->options;
+  EXPECT_NE(server_->log().find("(generation 1, step "), std::string::npos) << server_->log();
+}
+
 // Every acknowledged command is in the log file by the time its ack arrives: read back at each ack, the file holds
 // that command's record (the ack waits for the record to be written and flushed). Prints the command-to-ack
 // latency with and without --record, for docs/recording.md.
