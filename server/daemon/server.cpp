@@ -745,9 +745,9 @@ void Io::write_outbox() {
   // A command is in the log, flushed to the file, before its ack goes out: an acknowledged command survives a
   // kill -9 (--resume replays it).
   if (log_) record_outbox();
-  if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)))
-    spdlog::error("session log {}: writing it failed or took over 5 s; commands are acknowledged before they are "
-                  "in it", log_->path());
+  if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)) && log_->failed_syncs() == 1)
+    spdlog::error("session log {}: writing it failed or took over 5 s; commands are now acknowledged before they "
+                  "are in it (said once)", log_->path());
   for (const ladder_msg_CommandAck& a : out_.acks) ack_w_.write(a);
   for (const EventOut& e : out_.events) {
     ladder_msg_Event m{};

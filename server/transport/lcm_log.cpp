@@ -45,8 +45,11 @@ void LogWriter::push(Item item, bool droppable) {
 bool LogWriter::sync(std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
   const std::uint64_t target = queued_total_;
+  const auto caught_up = [&] { return flushed_total_ >= target; };
   // The writer wakes as soon as something is queued (push notifies it), so this waits for one write and flush.
-  const bool done = flushed_.wait_for(lock, timeout, [&] { return flushed_total_ >= target; });
+  const bool done = flushed_total_ < behind_until_ ? caught_up() : flushed_.wait_for(lock, timeout, caught_up);
+  if (!done) behind_until_ = target;
+  if (!done || failed_) failed_syncs_.fetch_add(1);
   return done && !failed_;
 }
 

@@ -52,9 +52,12 @@ class LogWriter {
     push({channel, utime, std::move(data)}, droppable);
   }
   // Waits until everything queued so far is written and flushed to the file (in the kernel's hands: it survives
-  // a kill -9 of this process, not a power cut). False when that took longer than `timeout` or writing failed.
-  // ladderd calls it before it acknowledges commands, so that every acknowledged command is in the log.
+  // a kill -9 of this process, not a power cut). False when that took longer than `timeout` or writing failed;
+  // then, until the writer has caught up with what was queued at that time, it returns false without waiting (a
+  // stalled disk costs its callers one timeout, not one per call). ladderd calls it before it acknowledges
+  // commands, so that every acknowledged command is in the log.
   bool sync(std::chrono::milliseconds timeout);
+  std::uint64_t failed_syncs() const { return failed_syncs_.load(); }
   std::uint64_t written() const { return written_.load(); }
   std::uint64_t dropped() const { return dropped_.load(); }
   const std::string& path() const { return path_; }
@@ -79,6 +82,8 @@ class LogWriter {
   std::uint64_t queued_total_ = 0, flushed_total_ = 0;  // items ever queued, and ever written and flushed
   std::condition_variable flushed_;                     // flushed_total_ grew
   bool failed_ = false;                                 // a write or flush failed
+  std::uint64_t behind_until_ = 0;                      // a sync timed out: do not wait until this much is flushed
+  std::atomic<std::uint64_t> failed_syncs_{0};
   bool closing_ = false;
   std::atomic<std::uint64_t> written_{0}, dropped_{0};
   std::thread thread_;

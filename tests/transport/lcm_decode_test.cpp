@@ -7,13 +7,19 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <bit>
 #include <cstring>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <random>
+#include <thread>
 
 namespace ladder::test {
 namespace {
@@ -365,6 +371,47 @@ TEST_F(LogBytes, RecordsAreCheckedAgainstEachOther) {
   EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), a_command(1, 1'000'000))),
                   "a command at generation 0, step 1000000, 1000000 steps after the checkpoint"));
   EXPECT_TRUE(has(read(log(an_event())), "no scene record"));
+}
+
+// LogWriter::sync (ladderd's ack waits on it): true once what was queued is written and flushed; on a file that
+// takes nothing (a FIFO nobody reads), false after the timeout, then false at once until the writer catches up,
+// and true again after.
+TEST(LogWriterSync, WaitsForTheFlushAndGivesUpOnceOnAStalledFile) {
+  const std::string fifo = (std::filesystem::temp_directory_path() /
+                            ("ladder-sync-" + std::to_string(getpid()) + ".fifo")).string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const int rd = open(fifo.c_str(), O_RDONLY | O_NONBLOCK);  // so that the writer's open does not block
+  ASSERT_GE(rd, 0);
+  auto w = std::make_unique<transport::LogWriter>(fifo);
+  w->write_bytes(transport::kEventChannel, 1, Bytes(10, 1), false);
+  EXPECT_TRUE(w->sync(std::chrono::seconds(30)));  // 10 bytes fit in the pipe
+  w->write_bytes(transport::kEventChannel, 1, Bytes(1 << 20, 2), false);  // 1 MB: more than a pipe holds
+  EXPECT_FALSE(w->sync(std::chrono::milliseconds(200)));
+  EXPECT_EQ(w->failed_syncs(), 1u);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(w->sync(std::chrono::seconds(60)));  // still behind: no second wait
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+  EXPECT_EQ(w->failed_syncs(), 2u);
+  // A reader drains the pipe: the writer catches up, and sync waits (and succeeds) again.
+  std::atomic<bool> done{false};
+  std::thread drain([&] {
+    char buf[65536];
+    while (!done)
+      if (read(rd, buf, sizeof buf) <= 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  });
+  bool caught_up = false;
+  for (int i = 0; i < 3000 && !caught_up; ++i) {  // up to 30 s
+    caught_up = w->sync(std::chrono::milliseconds(10));
+    if (!caught_up) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_TRUE(caught_up);
+  w->write_bytes(transport::kEventChannel, 1, Bytes(10, 3), false);
+  EXPECT_TRUE(w->sync(std::chrono::seconds(30)));
+  w.reset();  // its last flush and fsync, still drained
+  done = true;
+  drain.join();
+  close(rd);
+  std::filesystem::remove(fifo);
 }
 
 }  // namespace
