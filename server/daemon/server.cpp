@@ -746,8 +746,8 @@ void Io::write_outbox() {
   // kill -9 (--resume replays it).
   if (log_) record_outbox();
   if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)) && log_->failed_syncs() == 1)
-    spdlog::error("session log {}: writing it failed or took over 5 s; commands are now acknowledged before they "
-                  "are in it (said once)", log_->path());
+    spdlog::error("session log {}: writing it failed or took over 5 s; until it catches up, commands are "
+                  "acknowledged before they are in it (said once)", log_->path());
   for (const ladder_msg_CommandAck& a : out_.acks) ack_w_.write(a);
   for (const EventOut& e : out_.events) {
     ladder_msg_Event m{};
