@@ -20,9 +20,15 @@ namespace {
 
 using transport::copy_text;
 
+// The scene a record describes, made again from its text; its states were checked against its `blocks`, so the
+// text must make that many.
 scene::Scene scene_of(const ladderlcm::scene_t& s) {
   scene::Scene sc = scene::remake_scene(s.toml, s.source, s.overrides, s.clear_timeline);
   sc.name = s.name;
+  if (sc.ladder.blocks != s.blocks)
+    throw std::runtime_error("the scene record of generation " + std::to_string(s.generation) + " says " +
+                             std::to_string(s.blocks) + " blocks, but its text makes " +
+                             std::to_string(sc.ladder.blocks));
   return sc;
 }
 

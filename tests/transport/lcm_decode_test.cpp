@@ -373,6 +373,23 @@ TEST_F(LogBytes, RecordsAreCheckedAgainstEachOther) {
   EXPECT_TRUE(has(read(log(an_event())), "no scene record"));
 }
 
+// A scene record whose text makes another number of blocks than it says: the re-run refuses it before it builds
+// the simulation (its states were checked against the number it says).
+TEST_F(LogBytes, AReRunRefusesASceneRecordWhoseTextMakesOtherBlocks) {
+  ladderlcm::scene_t s = a_scene(4);
+  s.toml = "[ladder]\nblocks = 3\n";
+  s.masses.assign(4, 0.025);
+  const daemon::SessionLog parsed = daemon::read_session_log_bytes(log(s, a_checkpoint()), "mem.lcmlog");
+  std::unique_ptr<daemon::Session> session;
+  try {
+    daemon::resimulate(parsed, session);
+    ADD_FAILURE() << "re-run";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "the scene record of generation 0 says 4 blocks, but its text makes 3");
+  }
+  EXPECT_EQ(session, nullptr);
+}
+
 // LogWriter::sync (ladderd's ack waits on it): true once what was queued is written and flushed; on a file that
 // takes nothing (a FIFO nobody reads), false after the timeout, then false at once until the writer catches up,
 // and true again after.
