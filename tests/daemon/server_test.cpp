@@ -270,6 +270,19 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
 }
 
+// A hang-up (a closed terminal or SSH session) stops the server as cleanly as SIGTERM: exit 0, the reason logged.
+// (It used to end it at once, without its last lines.)
+TEST_F(Server, SighupStopsCleanlyAndSaysWhy) {
+  start();
+  server_->signal(SIGHUP);
+  const auto status = server_->wait_exit(kAnswer);
+  ASSERT_TRUE(status.has_value()) << "still running after SIGHUP";
+  ASSERT_TRUE(WIFEXITED(*status)) << "ended by a signal: " << WTERMSIG(*status);
+  EXPECT_EQ(WEXITSTATUS(*status), 0);
+  EXPECT_NE(server_->log().find("stopped: SIGHUP received (the terminal hung up)"), std::string::npos)
+      << server_->log();
+}
+
 // --tick-log: one line per tick of the real-time loop. Its deadlines lie exactly one period apart (a tick more than
 // one period late starts the schedule afresh from itself); its steps add up to the server's step count, with none
 // between the pause and the `step 10` but those ten; its commands are the two the test sent.
