@@ -332,7 +332,9 @@ TEST_F(Server, AMillionCommandFloodLeavesMemoryBoundedAndOthersAnswered) {
               static_cast<unsigned long long>(stats->commands_unanswered));
   // The bound: the intake keeps per sender at most commands.queue commands and its last 1024 answers, the ack
   // writer kAckDepth acks; 200 MB over the start leaves room for Cyclone's own buffers (before the bound, 1.5 GB).
+#if !defined(__SANITIZE_ADDRESS__)  // AddressSanitizer's quarantine alone holds 256 MB of freed memory
   EXPECT_LT(hwm1, hwm0 + 200) << "the server's peak memory grew by " << hwm1 - hwm0 << " MB";
+#endif
   EXPECT_TRUE(alive(*server_));
 }
 
