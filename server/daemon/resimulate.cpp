@@ -127,8 +127,9 @@ struct GenerationInfo {
 
 // The server writes a checkpoint at each scene's start and every checkpoint_every of sim time; a recorded step
 // more than two intervals (and a step) past the last checkpoint before it is one no run of the server makes, and
-// would let a few bytes of log ask a re-run for 2^62 steps.
-constexpr double kCheckpointGap = 2 * ServerConfig{}.checkpoint_every + transport::kLogMaxDt;
+// would let a few bytes of log ask a re-run for 2^62 steps. (Not constexpr: clang does not take a ServerConfig, with
+// its std::string members, in a constant expression.)
+const double kCheckpointGap = 2 * ServerConfig{}.checkpoint_every + transport::kLogMaxDt;
 
 std::string place(std::int32_t generation, std::int64_t step) {
   return "generation " + std::to_string(generation) + ", step " + std::to_string(step);
