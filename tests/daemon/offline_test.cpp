@@ -136,7 +136,7 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
-                        Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be > 0 and at most"},
+                        Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be >= 1 and at most"},
                         Case{scene + " --sim-id 'a b'", "server.sim_id 'a b' may hold only"},
                         Case{scene + " --set ladder.blocks=0", "ladder.blocks"},
                         Case{scene + " --domain 999", "--domain"},
