@@ -33,18 +33,21 @@ Vec2 vec(double x, double y, const char* name) {
   return {x, y};
 }
 
+// hypot, not norm(): |(1e300, 0)| is 1e300, where the sum of squares overflows to inf.
 Vec2 bounded(double x, double y, const char* name, double limit, const char* unit, const char* key) {
   const Vec2 v = vec(x, y, name);
-  if (v.norm() > limit)
-    throw std::invalid_argument(std::string(name) + " of " + number(v.norm()) + " " + unit + " is beyond the limit of " +
+  const double size = std::hypot(x, y);
+  if (size > limit)
+    throw std::invalid_argument(std::string(name) + " of " + number(size) + " " + unit + " is beyond the limit of " +
                                 number(limit) + " " + unit + " (" + key + ")");
   return v;
 }
 
 Vec2 within_reach(double x, double y, const char* name, double reach) {
   const Vec2 v = vec(x, y, name);
-  if (v.norm() > reach)
-    throw std::invalid_argument(std::string(name) + " is " + number(v.norm()) + " m from the origin, beyond the reach of " +
+  const double distance = std::hypot(x, y);
+  if (distance > reach)
+    throw std::invalid_argument(std::string(name) + " is " + number(distance) + " m from the origin, beyond the reach of " +
                                 number(reach) + " m (commands.reach)");
   return v;
 }
@@ -52,8 +55,9 @@ Vec2 within_reach(double x, double y, const char* name, double reach) {
 // A point on block i: `offset` from its centre must lie inside the block (1 % slack for rounding).
 void on_block(const model::Ladder& l, int i, const Vec2& offset, const char* name) {
   const double half_diagonal = 0.5 * std::hypot(l.spec().length, l.spec().thickness);
-  if (offset.norm() > 1.01 * half_diagonal)
-    throw std::invalid_argument(std::string(name) + " is " + number(offset.norm() * 1e3) + " mm from block " +
+  const double distance = std::hypot(offset.x(), offset.y());
+  if (distance > 1.01 * half_diagonal)
+    throw std::invalid_argument(std::string(name) + " is " + number(distance * 1e3) + " mm from block " +
                                 std::to_string(i) + "'s centre, outside the block (at most " +
                                 number(half_diagonal * 1e3) + " mm)");
 }
