@@ -611,15 +611,17 @@ void check_gravity(const Reader& r, const Vec2& g) {
 // tick's step take up to 1000 times as long as the finest time step allowed, for no gain in accuracy.
 void check_substep(const Reader& r, const Scene& s) {
   if (s.dt / s.substeps >= kMinSubstep * (1 - 1e-12)) return;  // 1e-4 / 1000 is 1e-7 up to rounding
-  // Blame whichever was given here (the one just set, for a live setting or --set); else the preset that set it.
-  const bool blame_dt = r.find("sim.dt") && (!r.find("sim.substeps") || (r.overridden("sim.dt") &&
-                                                                         !r.overridden("sim.substeps")));
-  const std::string_view key = blame_dt ? "sim.dt" : r.find("sim.substeps") ? "sim.substeps" : "sim.accuracy";
+  // Blame the key that the user just gave (a --set, or a live setting), else the file's substeps, dt or preset.
+  std::string_view key;
+  for (const std::string_view k : {"sim.substeps", "sim.dt", "sim.accuracy"}) {
+    if (!r.find(k)) continue;
+    if (key.empty() || (r.overridden(k) && !r.overridden(key))) key = k;
+  }
   const toml::node* n = r.find(key);
   const std::string message = "sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got " +
                               format_number(s.dt) + " / " + std::to_string(s.substeps) + " = " +
                               format_number(s.dt / s.substeps) + " s)";
-  if (!n) throw SceneError(std::string(r.source()) + ": " + message);  // cannot happen: one of them set it
+  if (!n) throw SceneError(std::string(r.source()) + ": " + message);  // cannot happen: one of the three set it
   r.site(key).fail(*n, message);
 }
 
