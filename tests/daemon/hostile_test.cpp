@@ -229,7 +229,8 @@ TEST_F(Hostile, NoHostileCommandMakesTheServerPublishANonFiniteNumberOrStop) {
   ASSERT_TRUE(resume.accepted || resume.reason == "not paused") << resume.reason;
   const client::Ack tip = c.call(cmd::tip(), kAnswer);  // events to scan: the ripple's flip-flops
   EXPECT_TRUE(tip.accepted) << tip.reason;
-  ASSERT_TRUE(scan_until([&] { return s.states > 0 && !s.paused; }, kAnswer)) << "no running state";
+  // (not an ASSERT: on a server that stopped publishing, the checks below still say what else went wrong)
+  EXPECT_TRUE(scan_until([&] { return s.states > 0 && !s.paused; }, kAnswer)) << "no running state";
 
   // Publication goes on at the set rate (60 Hz; at least 10 Hz asked, for a slow machine), and the ladder moves.
   const std::uint64_t seq0 = s.last_seq, step0 = s.last_step;
