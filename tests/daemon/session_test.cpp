@@ -15,6 +15,8 @@
 namespace ladder::daemon {
 namespace {
 
+using core::Vec2;
+
 const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes";
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -202,6 +204,16 @@ TEST(SessionRanges, LiveSceneKeysNameTheKeyTheValueAndTheRange) {
                  "sim.substeps=1000: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got 1e-05 / "
                  "1000 = 1e-08 s)");
   expect_accepted(*s, set("sim.substeps=100"));
+  // The drag against the step: a live sim.dt under a strong drag is refused too.
+  auto t = classic();
+  expect_accepted(*t, set("damping.linear=100"));
+  expect_refused(*t, set("sim.dt=0.05"),
+                 "sim.dt=0.05: damping.linear must be <= 1 / (sim.dt / sim.substeps) = 20 /s, so that one step takes at "
+                 "most a block's whole velocity (got 100 at sim.dt = 0.05 s, sim.substeps = 1)");
+  expect_accepted(*t, set("sim.dt=0.01"));
+  expect_refused(*t, set("damping.angular=101"),
+                 "damping.angular=101: damping.angular must be <= 1 / (sim.dt / sim.substeps) = 100 /s, so that one "
+                 "step takes at most a block's whole velocity (got 101 at sim.dt = 0.01 s, sim.substeps = 1)");
   expect_refused(*s, set("sim.dt=1e-6"),
                  "sim.dt=1e-6: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got 1e-06 / 100 = "
                  "1e-08 s)");
@@ -243,6 +255,23 @@ TEST(SessionRanges, TheEndsOfTheRangesStepWithoutFailing) {
     expect_accepted(*s, command(ladder_msg_TIP));
     const int steps = std::string(setting) == "sim.dt=1e-7" ? 2000 : static_cast<int>(1.0 / s->sim().dt());
     EXPECT_EQ(failures_in(*s, steps), 0);
+  }
+  // The largest poke and the largest push, at a block's corner.
+  for (const ladder_msg_CommandKind kind : {ladder_msg_POKE, ladder_msg_PUSH}) {
+    SCOPED_TRACE(to_string(kind));
+    auto s = classic();
+    ladder_msg_Command c = command(kind);
+    c.block = 5;
+    c.a = 0.6, c.b = 0.8;  // 1 N s, 100 N below
+    if (kind == ladder_msg_PUSH) c.a *= 100, c.b *= 100, c.e = 60;
+    c.has_point = true;
+    const model::Ladder& l = s->sim().ladder();
+    const Vec2 corner = l.corner(5, 1);
+    const Vec2 local = l.world().part_rotation(5).inverse() * (corner - l.block_centre(5));
+    c.c = kind == ladder_msg_POKE ? corner.x() : local.x();
+    c.d = kind == ladder_msg_POKE ? corner.y() : local.y();
+    expect_accepted(*s, c);
+    EXPECT_EQ(failures_in(*s, 1000), 0);
   }
   // The strongest hand at the far end of its reach, turning a block by the largest angle.
   auto s = classic();
