@@ -164,7 +164,7 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
                         Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
-                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be > 0 and at most"},
+                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be >= 1 and at most"},
                         Case{"[server\n", ":1:8: "}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
     const Result r = ladderd("--config " + path("ladderd.toml"));
