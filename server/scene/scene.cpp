@@ -114,9 +114,11 @@ constexpr std::array kKeys{
     // The drags are explicit forces: at 1 ms a block stops within a step already at 1000 /s (3e5 fails the step),
     // and hinge friction above 0.4 N m s fails it for the shipped 25 g blocks.
     KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = between(0, 1000),
-           .help = "drag force -c m v on each block [1/s]"},
+           .help = "drag force -c m v on each block [1/s]",
+           .range_text = ">= 0 and <= 1000, and <= 1 / (sim.dt / sim.substeps)"},
     KeyDef{.name = "damping.angular", .kind = Kind::Number, .range = between(0, 1000),
-           .help = "drag torque -c I w on each block [1/s]"},
+           .help = "drag torque -c I w on each block [1/s]",
+           .range_text = ">= 0 and <= 1000, and <= 1 / (sim.dt / sim.substeps)"},
     KeyDef{.name = "damping.hinge", .kind = Kind::Number, .range = between(0, 0.1),
            .help = "viscous hinge torque -c (w_b - w_a) [N m s]"},
     KeyDef{.name = "timeline.t", .kind = Kind::Number, .range = at_least(0),

@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <optional>
 #include <thread>
 #include <limits>
@@ -258,6 +260,33 @@ TEST_F(Hostile, NoHostileCommandMakesTheServerPublishANonFiniteNumberOrStop) {
   const auto status = server_->wait_exit(Millis(10000));
   ASSERT_TRUE(status.has_value()) << "ladderd did not stop";
   EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << server_->log();
+}
+
+// Careless start-up input is refused before anything starts, with exit 2 and a message naming it: an empty scene
+// file (it would silently be the defaults) and a log file in a folder that does not exist (spdlog made the folders).
+TEST(HostileStart, AnEmptySceneAndALogFileInAMissingFolderExitTwoNamingThem) {
+  const std::string dir = std::string(LADDER_BINARY_DIR) + "/tests/" + test_name();
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string empty = dir + "/empty.toml";
+  std::ofstream(empty) << "# nothing but a comment\n";
+  // `timeout`: a ladderd that takes the input would serve until it is stopped.
+  const std::string ladderd = "timeout 20 " + std::string(LADDER_BINARY_DIR) + "/server/ladderd --domain " +
+                              std::to_string(domain_for(test_name())) + " ";
+  Result r = shell(ladderd + "--scene " + empty);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find(empty + ":1:1: the scene file is empty; a scene needs at least one table"),
+            std::string::npos)
+      << r.output;
+  const std::string log = dir + "/no-such-folder/ladderd.log";
+  r = shell(ladderd + "--log-file " + log);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("ladderd: cannot open the log file '" + log + "': its folder '" + dir +
+                          "/no-such-folder' does not exist"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/no-such-folder")) << "the folder was made";
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
