@@ -428,8 +428,8 @@ void Physics::hand_over_ticks() {
 }
 
 // Runs the steps this tick owes: real time times the real-time factor, or pending single steps while paused.
-// With a real-time factor of 0 it steps for one tick period of wall time. A backlog beyond two ticks' worth is
-// dropped rather than caught up, so an overloaded server runs slow instead of freezing.
+// With a real-time factor of 0 it steps for one tick period of wall time. A backlog beyond two ticks' worth (or one
+// step, when a step is longer) is dropped rather than caught up, so an overloaded server runs slow instead of freezing.
 void Physics::advance(double period, Clock::time_point tick_start) {
   const double dt = session_.sim().dt();
   const auto budget = tick_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
@@ -455,7 +455,9 @@ void Physics::advance(double period, Clock::time_point tick_start) {
     if (Clock::now() >= budget + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period)))
       break;
   }
-  debt_ = std::min(debt_, 2 * rtf * period);
+  // At most two ticks' worth, or one step: a sim.dt longer than two ticks of sim time (4 ms at 1 kHz and a real-time
+  // factor of 1) must still come due, or the simulation would never step again.
+  debt_ = std::min(debt_, std::max(2 * rtf * period, dt));
 }
 
 void Physics::collect_events() {

@@ -262,6 +262,65 @@ TEST_F(Hostile, NoHostileCommandMakesTheServerPublishANonFiniteNumberOrStop) {
   EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << server_->log();
 }
 
+// A step longer than two ticks of sim time (sim.dt = 0.05 s against 1 ms ticks) still comes due: the loop's backlog
+// cap of two ticks kept it from ever stepping (set sim.dt=0.05 froze the simulation).
+TEST_F(Hostile, ACoarseStepStillRunsInRealTime) {
+  start();
+  Client& c = *client_;
+  ASSERT_TRUE(c.call(cmd::set("sim.dt=0.05"), kAnswer).accepted);
+  const auto s0 = c.wait_state([](const client::State&) { return true; }, kAnswer);
+  ASSERT_TRUE(s0.has_value());
+  const auto t0 = Clock::now();
+  const auto later = c.wait_state([&](const client::State& st) { return st.sim_time >= s0->sim_time + 0.5; },
+                                  Millis(20000));
+  ASSERT_TRUE(later.has_value()) << "the simulation did not advance 0.5 s in 20 s";
+  std::printf("0.5 s of sim time in 0.05 s steps took %.2f s of wall time\n",
+              std::chrono::duration<double>(Clock::now() - t0).count());
+  EXPECT_FALSE(later->paused);
+}
+
+// Settings that are each within range can still fail a step together (a 0.1 s step under 1000 m/s^2 sideways):
+// the server pauses, and a reset then restarts the scene with its own settings instead of failing again.
+TEST_F(Hostile, AResetAfterAFailedStepRestoresTheScenesSettings) {
+  start();
+  Client& c = *client_;
+  Scanner& s = *scanner_;
+  const auto own = c.wait_scene_info(kAnswer);
+  ASSERT_TRUE(own.has_value());
+  ASSERT_TRUE(c.call(cmd::set("sim.dt=0.1"), kAnswer).accepted);
+  ASSERT_TRUE(c.call(cmd::set("sim.gravity=[1000,0]"), kAnswer).accepted);
+  ASSERT_TRUE(scan_until([&] { return !s.failures.empty(); }, Millis(30000))) << "no step failed";
+  ASSERT_TRUE(c.wait_state([](const client::State& st) { return st.paused; }, kAnswer)) << "not paused";
+  // Failing again at once would be the old reset (the live settings kept).
+  const client::Ack reset = c.call(cmd::reset(), kAnswer);
+  EXPECT_TRUE(reset.accepted);
+  EXPECT_EQ(reset.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
+  const auto restored = c.wait_scene_info(kAnswer, [&](const client::SceneInfo& i) {
+    return i.generation > own->generation;
+  });
+  ASSERT_TRUE(restored.has_value());
+  EXPECT_EQ(restored->options, own->options);
+  EXPECT_EQ(restored->dt, own->dt);
+  const std::size_t failures = s.failures.size();
+  ASSERT_TRUE(c.call(cmd::resume(), kAnswer).accepted);
+  ASSERT_TRUE(c.call(cmd::tip(), kAnswer).accepted);
+  const auto moved = c.wait_state([](const client::State& st) { return !st.paused && st.step > 1000; }, Millis(30000));
+  EXPECT_TRUE(moved.has_value()) << "the restarted scene did not run 1000 steps";
+  scan_until([] { return false; }, Millis(200));
+  EXPECT_EQ(s.failures.size(), failures) << "it failed again: " << s.failures.back();
+  EXPECT_EQ(s.non_finite, 0u) << "first: " << s.first_bad;
+  // A reset without a failure keeps the live settings, as before.
+  ASSERT_TRUE(c.call(cmd::set("damping.linear=0.5"), kAnswer).accepted);
+  const client::Ack plain = c.call(cmd::reset(), kAnswer);
+  EXPECT_TRUE(plain.accepted);
+  EXPECT_EQ(plain.reason, "");
+  const auto kept = c.wait_scene_info(kAnswer, [&](const client::SceneInfo& i) {
+    return i.generation > restored->generation;
+  });
+  ASSERT_TRUE(kept.has_value());
+  EXPECT_NE(kept->options.find("damping.linear=0.5\n"), std::string::npos) << kept->options;
+}
+
 // Careless start-up input is refused before anything starts, with exit 2 and a message naming it: an empty scene
 // file (it would silently be the defaults) and a log file in a folder that does not exist (spdlog made the folders).
 TEST(HostileStart, AnEmptySceneAndALogFileInAMissingFolderExitTwoNamingThem) {
