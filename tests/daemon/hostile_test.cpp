@@ -113,13 +113,15 @@ std::vector<ladder_msg_Command> hostile_commands() {
                                 std::numeric_limits<double>::min() / 4};
   std::vector<ladder_msg_Command> out;
   out.push_back(cmd::grab(3));  // so that drags find a grip
-  // Every field of the kinds that take numbers, with and without the has_* flags.
-  for (const ladder_msg_CommandKind kind : {ladder_msg_POKE, ladder_msg_PUSH, ladder_msg_GRAB, ladder_msg_DRAG}) {
+  // Every field of every kind (the kinds without numbers must ignore them), with and without the has_* flags.
+  for (int k = ladder_msg_TIP; k <= ladder_msg_LOAD_SCENE; ++k) {
+    const auto kind = static_cast<ladder_msg_CommandKind>(k);
     for (int field = 0; field < 6; ++field) {
       for (const double v : bad) {
         for (const bool flags : {false, true}) {
           ladder_msg_Command c = cmd::make(kind);
-          c.block = 3;
+          c.block = c.hinge = 3;
+          c.count = 10;
           c.a = 0.001, c.b = 0, c.c = 0, c.d = 0, c.e = 0.01, c.f = 0.1;
           c.has_point = c.has_target = c.has_angle = flags;
           double* fields[] = {&c.a, &c.b, &c.c, &c.d, &c.e, &c.f};
