@@ -353,6 +353,8 @@ TEST(Errors, LiveSettingsBoundsInAFile) {
   EXPECT_EQ(error_of("[sim]\ndt = 2e-7\n", {"sim.accuracy=accurate"}),
             "--set sim.accuracy=accurate: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got "
             "2e-07 / 4 = 5e-08 s)");
+  EXPECT_EQ(error_of("[initial]\nkick_omega = 1e300\n"),
+            "<string>:2:14: initial.kick_omega must be >= -1000 and <= 1000 (got 1e+300)");
   EXPECT_EQ(error_of("[sim]\ndt = 1e-4\nsubsteps = 1000\n"), "");  // 1e-7 exactly, up to rounding
   EXPECT_EQ(error_of("[sim]\ngravity = [0, -1000]\n[damping]\nlinear = 1000\nangular = 1000\nhinge = 0.1\n"), "");
 }
