@@ -485,7 +485,8 @@ void Physics::publish_state() {
   const std::string bad = non_finite_in(f);
   if (!bad.empty()) {
     // Treated as a failed step: the frame is not handed over (clients keep the last good state) and the session
-    // pauses, so that a reset restores the scene's own settings.
+    // pauses, so that a reset restores the scene's own settings. Reported once, not at every command while paused.
+    if (session_.failed()) return;
     session_.fail();
     const std::string why = "the state holds a non-finite number (" + bad + "): not published; paused";
     spdlog::error("step failed, simulation paused: {}", why);

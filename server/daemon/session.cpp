@@ -47,8 +47,8 @@ Vec2 within_reach(double x, double y, const char* name, double reach) {
   const Vec2 v = vec(x, y, name);
   const double distance = std::hypot(x, y);
   if (distance > reach)
-    throw std::invalid_argument(std::string(name) + " is " + number(distance) + " m from the origin, beyond the reach of " +
-                                number(reach) + " m (commands.reach)");
+    throw std::invalid_argument(std::string(name) + " is " + number(distance) +
+                                " m from the origin, beyond the reach of " + number(reach) + " m (commands.reach)");
   return v;
 }
 

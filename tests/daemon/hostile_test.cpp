@@ -296,7 +296,8 @@ TEST_F(Hostile, AResetAfterAFailedStepRestoresTheScenesSettings) {
   // Failing again at once would be the old reset (the live settings kept).
   const client::Ack reset = c.call(cmd::reset(), kAnswer);
   EXPECT_TRUE(reset.accepted);
-  EXPECT_EQ(reset.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
+  EXPECT_EQ(reset.reason,
+            "the last step failed: the scene restarted with its own settings (the live settings dropped)");
   const auto restored = c.wait_scene_info(kAnswer, [&](const client::SceneInfo& i) {
     return i.generation > own->generation;
   });
