@@ -38,6 +38,14 @@ bool to_journal() {
 void setup_logging(const DaemonConfig& config) {
   std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
   if (!config.log_file.empty()) {
+    // spdlog's file sink makes the missing folders on its way: a typo in the path would log to a new tree nobody
+    // looks at. The folder must exist.
+    namespace fs = std::filesystem;
+    const fs::path parent = fs::path(config.log_file).parent_path();
+    std::error_code ec;
+    if (!parent.empty() && !fs::is_directory(parent, ec))
+      throw std::runtime_error("cannot open the log file '" + config.log_file + "': its folder '" + parent.string() +
+                               "' does not exist");
     try {
       sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(config.log_file));
     } catch (const spdlog::spdlog_ex& e) {
