@@ -75,10 +75,10 @@ std::string find_scene(const std::string& scene, const std::string& scenes_dir) 
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::is_regular_file(scene, ec)) return scene;
-  if (scene.find('/') == std::string::npos && !scene.starts_with(".")) {
-    const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
-    if (fs::is_regular_file(named, ec)) return named.string();
-  }
+  if (scene.find('/') != std::string::npos || scene.starts_with("."))
+    throw std::runtime_error("--scene " + scene + ": no such file");
+  const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
+  if (fs::is_regular_file(named, ec)) return named.string();
   std::string available;
   for (const auto& entry : fs::directory_iterator(scenes_dir, ec))
     if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();

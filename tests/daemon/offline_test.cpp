@@ -127,7 +127,7 @@ TEST_F(Offline, BadSceneIsRefusedWithItsPosition) {
 TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
   const std::string scene = " --scene " + kScenes + "classic.toml";
   struct Case { std::string args, words; };
-  for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "File does not exist"},
+  for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "--scene /no/such.toml: no such file\n"},
                         Case{"--offline" + scene + " --duration ten", "--duration"},
                         Case{"--offline" + scene, "--duration"},
                         Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
