@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <map>
 #include <set>
 #include <thread>
@@ -111,21 +112,29 @@ TEST_F(NetFault, ThousandCommandsUnderTwentyPercentLossAreEachAppliedOnce) {
   const double connect_ms = ms_since(t_connect);
   const std::uint64_t base = c->latest_state()->commands_applied;
 
-  // Distinct values, so that the last one applied shows in the live settings; acks are checked as they come.
+  // Distinct values, so that the last one applied shows in the live settings. kWindow commands in flight, as a
+  // client that does not wait for each answer: a lost packet then holds up the answers behind it too (DDS delivers a
+  // writer's samples in order), which the latencies include. Acks arrive in order, so waiting for the oldest times
+  // each one as it comes.
   constexpr int kCommands = 1000;
+  constexpr std::size_t kWindow = 10;  // 1: each command alone (docs/network.md has both figures)
   std::vector<double> latency_ms;
   std::set<std::uint64_t> seqs;
+  std::deque<std::pair<std::uint64_t, Clock::time_point>> in_flight;  // command id, when sent
   const auto t_run = Clock::now();
-  for (int i = 1; i <= kCommands; ++i) {
-    char text[64];
-    std::snprintf(text, sizeof text, "damping.linear=%.3f", 0.001 * i);
-    const auto t0 = Clock::now();
-    const std::uint64_t id = c->send(cmd::set(text));
+  for (int sent = 0; sent < kCommands || !in_flight.empty();) {
+    while (sent < kCommands && in_flight.size() < kWindow) {
+      char text[64];
+      std::snprintf(text, sizeof text, "damping.linear=%.3f", 0.001 * ++sent);
+      in_flight.emplace_back(c->send(cmd::set(text)), Clock::now());
+    }
+    const auto [id, t0] = in_flight.front();
+    in_flight.pop_front();
     const auto ack = c->wait_ack(id, kLossy);
-    ASSERT_TRUE(ack.has_value()) << "command " << i << " (" << text << ") unanswered after " << kLossy.count()
+    ASSERT_TRUE(ack.has_value()) << "command " << id << " unanswered after " << kLossy.count()
                                  << " ms; server log:\n" << server.log();
     latency_ms.push_back(ms_since(t0));
-    ASSERT_TRUE(ack->accepted) << text << ": " << ack->reason;
+    ASSERT_TRUE(ack->accepted) << "command " << id << ": " << ack->reason;
     EXPECT_TRUE(seqs.insert(ack->command_seq).second) << "command_seq " << ack->command_seq << " given twice";
   }
   const double run_s = ms_since(t_run) / 1000;
@@ -164,9 +173,9 @@ TEST_F(NetFault, ThousandCommandsUnderTwentyPercentLossAreEachAppliedOnce) {
     EXPECT_GT(loss, 10.0);
     EXPECT_LT(loss, 30.0);
   }
-  std::printf("[ figures  ] 20 %% loss each way: connected in %.0f ms; %d commands in %.1f s; ack latency p50 %.2f ms, "
-              "p99 %.1f ms, max %.1f ms\n",
-              connect_ms, kCommands, run_s, percentile(latency_ms, 0.5), percentile(latency_ms, 0.99),
+  std::printf("[ figures  ] 20 %% loss each way: connected in %.0f ms; %d commands, %zu in flight, in %.1f s; ack "
+              "latency p50 %.2f ms, p99 %.1f ms, max %.1f ms\n",
+              connect_ms, kCommands, kWindow, run_s, percentile(latency_ms, 0.5), percentile(latency_ms, 0.99),
               *std::max_element(latency_ms.begin(), latency_ms.end()));
 }
 
@@ -195,8 +204,8 @@ TEST_F(NetFault, ClientResumesAfterAFiveSecondPartition) {
   EXPECT_EQ(c->latest_state()->seq, seq_cut) << "a state crossed the partition";
   EXPECT_FALSE(c->wait_ack(during, Millis(0)).has_value()) << "an ack crossed the partition";
 
+  const auto t_heal = Clock::now();  // states flow as soon as side a's classifier is gone, before b's is
   net.clear_loss();
-  const auto t_heal = Clock::now();
   const auto st = c->wait_state([&](const client::State& s) { return s.seq > seq_cut; }, kLossy);
   ASSERT_TRUE(st.has_value()) << "no state in " << kLossy.count() << " ms after the heal; server log:\n"
                               << server.log();
