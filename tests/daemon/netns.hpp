@@ -5,7 +5,7 @@
 // delete (a failed test, a killed one) stays mounted. Here each namespace belongs to a child process that unshares
 // a new one and sleeps; the kernel kills it when the test process ends, however it ends (PR_SET_PDEATHSIG), and the
 // namespace, its veth end and so the pair go with it. Nothing is mounted. Programs run in a namespace through
-// nsenter --net=/proc/PID/ns/net; the test's own thread can enter side b to run a client library Client there
+// nsenter --net=/proc/PID/ns/net (and die with the test too); the test's own thread can enter side b to run a client library Client there
 // (Cyclone's sockets and threads are made in the namespace of the thread that creates the first participant).
 #pragma once
 
@@ -40,6 +40,7 @@ inline std::string tool(std::initializer_list<const char*> paths, const std::str
 inline std::string ip_tool() { return tool({"/usr/sbin/ip", "/sbin/ip", "/usr/bin/ip", "/bin/ip"}, "iproute2"); }
 inline std::string tc_tool() { return tool({"/usr/sbin/tc", "/sbin/tc", "/usr/bin/tc"}, "iproute2"); }
 inline std::string nsenter_tool() { return tool({"/usr/bin/nsenter", "/bin/nsenter"}, "util-linux"); }
+inline std::string setpriv_tool() { return tool({"/usr/bin/setpriv", "/bin/setpriv"}, "util-linux"); }
 
 class NetnsPair {
  public:
@@ -69,6 +70,7 @@ class NetnsPair {
              "need root";
     const std::string ip = ip_tool();
     nsenter_tool();
+    setpriv_tool();
     tc_tool();
     for (pid_t* holder : {&holder_a_, &holder_b_})
       if (auto why = hold_new_namespace(*holder)) return "the kernel refused a network namespace: " + *why;
@@ -124,11 +126,21 @@ class NetnsPair {
 
   // A shell command run in namespace a or b; its exit code and output.
   Result in(char side, const std::string& command) const { return shell(prefix(side) + command); }
-  // The argument list that runs `args` in namespace a or b with this Cyclone configuration (XML text).
-  std::vector<std::string> run_in(char side, const std::string& cyclone_xml, std::vector<std::string> args) const {
-    std::vector<std::string> all{nsenter_tool(), net_option(side), "/usr/bin/env", "CYCLONEDDS_URI=" + cyclone_xml};
+  // The argument list that runs `args` in namespace a or b with this CYCLONEDDS_URI (XML text or file://). The program
+  // is killed when the thread that starts it ends (setpriv --pdeathsig), so that a test that dies leaves no server
+  // holding a namespace.
+  std::vector<std::string> run_in(char side, const std::string& cyclone_uri, std::vector<std::string> args) const {
+    std::vector<std::string> all{nsenter_tool(), net_option(side), setpriv_tool(), "--pdeathsig", "KILL",
+                                 "/usr/bin/env", "CYCLONEDDS_URI=" + cyclone_uri};
     all.insert(all.end(), args.begin(), args.end());
     return all;
+  }
+
+  // The same as a prefix for shell(); the URI must need no quoting (a file:// path without spaces).
+  std::string shell_prefix(char side, const std::string& cyclone_uri) const {
+    std::string out;
+    for (const std::string& a : run_in(side, cyclone_uri, {})) out += a + " ";
+    return out;
   }
 
   // Moves the calling thread into namespace b (and back). Threads it starts afterwards (Cyclone's) are in b too.
