@@ -239,11 +239,16 @@ bool Client::wait_for_server(Millis timeout) {
 }
 
 std::uint64_t Client::send(ladder_msg_Command c) {
+  const std::uint64_t id = next_id_++;
+  resend(c, id);
+  return id;
+}
+
+void Client::resend(ladder_msg_Command c, std::uint64_t id) {
   copy_text(c.sim_id, sim_id_);
   copy_text(c.client_id, client_id_);
-  c.command_id = next_id_++;
+  c.command_id = id;
   command_w_.write(c);
-  return c.command_id;
 }
 
 std::optional<Ack> Client::wait_ack(std::uint64_t id, Millis timeout) {

@@ -5,8 +5,9 @@
 // delete (a failed test, a killed one) stays mounted. Here each namespace belongs to a child process that unshares
 // a new one and sleeps; the kernel kills it when the test process ends, however it ends (PR_SET_PDEATHSIG), and the
 // namespace, its veth end and so the pair go with it. Nothing is mounted. Programs run in a namespace through
-// nsenter --net=/proc/PID/ns/net (and die with the test too); the test's own thread can enter side b to run a client library Client there
-// (Cyclone's sockets and threads are made in the namespace of the thread that creates the first participant).
+// nsenter --net=/proc/PID/ns/net (and die with the test too); the test's own thread can enter side b to run a
+// client library Client there (Cyclone makes its sockets and threads in the namespace of the thread that creates
+// the domain's first participant).
 #pragma once
 
 #include "process.hpp"
