@@ -82,10 +82,10 @@ class NetFault : public ::testing::Test {
     return {kLadderd, "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--log-level", "debug"};
   }
   // ladderd in namespace a.
-  Process start_server_in_a(const NetnsPair& net, const std::string& log_suffix = "") const {
-    return Process(net.run_in('a', NetnsPair::xml_a(), ladderd_args()), log_ + log_suffix + ".log");
+  Process start_server_in_a(const NetnsPair& net) const {
+    return Process(net.run_in('a', NetnsPair::xml_a(), ladderd_args()), log_ + ".log");
   }
-  // A client in namespace b (the calling thread enters it for good: Cyclone's threads start from it).
+  // A client in namespace b: the calling thread stays there until `net` goes, and Cyclone's threads start from it.
   void client_in_b(NetnsPair& net, std::optional<Client>& c, const std::string& client_id) const {
     net.enter_b();
     ScopedEnv uri("CYCLONEDDS_URI", NetnsPair::xml_b());
@@ -100,7 +100,7 @@ class NetFault : public ::testing::Test {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-// 20 % random loss each way: 1000 commands, one at a time, each acknowledged once and applied once.
+// 20 % random loss each way (from before discovery): 1000 commands, 10 in flight, each answered and applied once.
 
 TEST_F(NetFault, ThousandCommandsUnderTwentyPercentLossAreEachAppliedOnce) {
   NetnsPair net;
