@@ -1,5 +1,5 @@
 // ladderd: the Jacob's ladder simulation server. By default it serves the ladder in real time over Cyclone DDS
-// until SIGINT or SIGTERM; with --offline it runs a scene as fast as possible with no network and exits.
+// until SIGINT, SIGTERM or SIGHUP; with --offline it runs a scene as fast as possible with no network and exits.
 #include "daemon/config.hpp"
 #include "daemon/offline.hpp"
 #include "daemon/server.hpp"

@@ -2,6 +2,7 @@
 
 #include "daemon/handoff.hpp"
 #include "daemon/intake.hpp"
+#include "daemon/notify.hpp"
 #include "daemon/resimulate.hpp"
 #include "ladderlcm/checkpoint_t.hpp"
 #include "ladderlcm/command_t.hpp"
@@ -142,6 +143,8 @@ struct Shared {
   std::atomic<bool> physics_done{false};
   std::atomic<bool> abort{false};  // the I/O thread failed: the physics thread stops too
   const transport::Waiter* waiter = nullptr;  // to wake the I/O thread
+  const Notifier* notifier = nullptr;          // systemd's, when it started us
+  std::atomic<Clock::rep> io_alive{0};         // when the I/O thread last went round its loop
 };
 
 // The answer to command c: addressed to its client, with the outcome; the caller adds when it took effect.
@@ -257,6 +260,7 @@ class Physics {
   void checkpoint();
   void log_tick(Clock::time_point start, Clock::duration late);
   void hand_over_ticks();
+  void keep_watchdog(Clock::time_point now);
   template <class F>
   void with_outbox(F&& f) {
     std::lock_guard lock(sh_.outbox_mutex);
@@ -282,6 +286,7 @@ class Physics {
   std::vector<TickRecord> ticks_;  // ticks not yet handed to the I/O thread
   double next_checkpoint_ = 0;  // [s of sim time]
   bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
+  Clock::time_point next_watchdog_{};  // when systemd's watchdog is next told that all is well
 };
 
 void Physics::checkpoint() {
@@ -521,10 +526,20 @@ void Physics::run(const std::atomic<bool>& stop) {
     hand_over_ticks();  // the ticks before a failure are the ones worth reading
     throw;
   }
+  sh_.notifier->send("STOPPING=1");
   publish_state();
   hand_over_ticks();
   sh_.physics_done = true;
   sh_.waiter->wake();
+}
+
+// systemd's watchdog (WatchdogSec=) hears from the physics loop, twice per interval, only while both threads go
+// round: a loop wedged in a step, or an I/O thread wedged in DDS, goes silent and systemd restarts the server.
+void Physics::keep_watchdog(Clock::time_point now) {
+  const auto interval = *sh_.notifier->watchdog();
+  next_watchdog_ = now + interval / 2;
+  const Clock::time_point io{Clock::duration(sh_.io_alive.load(std::memory_order_relaxed))};
+  if (now - io < interval / 2) sh_.notifier->send("WATCHDOG=1");
 }
 
 // The real-time loop, until `stop` or an I/O failure.
@@ -560,6 +575,7 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     }
     if (seconds(now - last_stats_) >= 1.0 / sh_.config.stats_rate) publish_stats(now);
     if (tick_log_) log_tick(start, late);
+    if (sh_.notifier->watchdog() && now >= next_watchdog_) keep_watchdog(now);
     sh_.waiter->wake();
     deadline += period_d;
     if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
@@ -927,7 +943,9 @@ void Io::write_state() {
   transport::lend_blocks(m, f->poses, f->hinge_corner, f->hinge_status, f->hinge_flips);
   transport::lend(m.grips, f->grips);
   written(state_w_.try_write(m), "ladder/State");
-  sh_.states_published.fetch_add(1, std::memory_order_relaxed);
+  if (sh_.states_published.fetch_add(1, std::memory_order_relaxed) == 0)  // the first is on the wire: ready
+    sh_.notifier->send("READY=1\nSTATUS=serving sim id '" + sh_.config.sim_id + "' on DDS domain " +
+                       std::to_string(sh_.config.domain));
   if (log_) record_state(*f, m.seq);
 }
 
@@ -1022,6 +1040,7 @@ void Io::record_state(const StateFrame& f, std::uint64_t seq) {
 
 void Io::run() {
   while (true) {
+    sh_.io_alive.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed);
     const bool done = sh_.physics_done.load();
     waiter_.wait(std::chrono::milliseconds(5));
     take_commands();
@@ -1078,6 +1097,13 @@ int run_server(const ServerConfig& config, const scene::Scene& scene, const std:
 int run_server(const ServerConfig& config, std::unique_ptr<Session> session, const std::atomic<bool>& stop) {
   const scene::Scene& scene = session->sim().scene();
   Shared shared(config);
+  const Notifier notifier;
+  shared.notifier = &notifier;
+  if (notifier.enabled())
+    spdlog::info("telling systemd when ready and stopping{}",
+                 notifier.watchdog() ? ", and its watchdog every " +
+                                           std::to_string(notifier.watchdog()->count() / 2000) + " ms"
+                                     : std::string());
   std::unique_ptr<transport::LogWriter> log;
   if (!config.record.empty()) {
     try {

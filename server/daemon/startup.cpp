@@ -110,12 +110,18 @@ void catch_stop_signals(std::atomic<bool>& stop) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  // A hang-up (the terminal or SSH session that started the server closed) stops it as cleanly as SIGTERM, with
+  // its last log lines and the session log closed, instead of the default's sudden death.
+  sigaction(SIGHUP, &sa, nullptr);
+  // A closed pipe on standard error (ladderd 2>&1 | head) makes a write fail with EPIPE instead of killing it.
+  signal(SIGPIPE, SIG_IGN);
 }
 
 void log_stop_reason() {
   const int sig = g_signal;
   if (sig == SIGTERM) spdlog::info("stopped: SIGTERM received");
   else if (sig == SIGINT) spdlog::info("stopped: SIGINT received (Ctrl-C)");
+  else if (sig == SIGHUP) spdlog::info("stopped: SIGHUP received (the terminal hung up)");
   else spdlog::info("stopped");
 }
 

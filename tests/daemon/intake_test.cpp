@@ -167,12 +167,12 @@ TEST_F(Server, ASuspendedWatcherCostsOnlyItsOwnSamples) {
   watcher.signal(SIGINT);
 }
 
-// A participant (tests/daemon/stuck_reader.cpp, a process of its own) whose readers of every topic never take and
+// A participant (tests/daemon/hostile_peer.cpp, a process of its own) whose readers of every topic never take and
 // have room for one sample each: alive and heartbeating, it confirms nothing beyond its first sample, for as long as
 // it lives.
 TEST_F(Server, ReadersThatNeverTakeCannotStopTheServer) {
   start();
-  Process stuck({std::string(LADDER_BINARY_DIR) + "/tests/stuck_reader", std::to_string(domain_)},
+  Process stuck({std::string(LADDER_BINARY_DIR) + "/tests/hostile_peer", "stuck", std::to_string(domain_)},
                 std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".stuck.log");
   const auto deadline = Clock::now() + kStart;
   while (stuck.log().find("ready") == std::string::npos && Clock::now() < deadline)
@@ -332,8 +332,37 @@ TEST_F(Server, AMillionCommandFloodLeavesMemoryBoundedAndOthersAnswered) {
               static_cast<unsigned long long>(stats->commands_unanswered));
   // The bound: the intake keeps per sender at most commands.queue commands and its last 1024 answers, the ack
   // writer kAckDepth acks; 200 MB over the start leaves room for Cyclone's own buffers (before the bound, 1.5 GB).
+#if !defined(__SANITIZE_ADDRESS__)  // AddressSanitizer's quarantine alone holds 256 MB of freed memory
   EXPECT_LT(hwm1, hwm0 + 200) << "the server's peak memory grew by " << hwm1 - hwm0 << " MB";
+#endif
   EXPECT_TRUE(alive(*server_));
+}
+
+// Commands that do not decode as this server's Command (a kind beyond its enum, from a client built from another
+// msgs/ladder.idl) never reach ladderd: Cyclone drops them on receipt. They are counted in
+// Stats.commands_undecodable, and Cyclone's warning is in ladderd's log, at most 10 lines a second.
+TEST_F(Server, CommandsThatDoNotDecodeAreCountedAndLogged) {
+  start();
+  Process peer({std::string(LADDER_BINARY_DIR) + "/tests/hostile_peer", "bad-command", std::to_string(domain_), sim_id_,
+                "50"},
+               std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".peer.log");
+  const auto deadline = Clock::now() + kStart;
+  while (peer.log().find("sent") == std::string::npos && Clock::now() < deadline)
+    std::this_thread::sleep_for(Millis(20));
+  ASSERT_NE(peer.log().find("sent"), std::string::npos) << peer.log();
+  const auto stats = c().wait_stats([](const ladder_msg_Stats& s) { return s.commands_undecodable >= 50; }, kAnswer);
+  ASSERT_TRUE(stats.has_value()) << server_->log();
+  EXPECT_EQ(stats->commands_undecodable, 50u);
+  EXPECT_EQ(stats->commands_received, 0u) << "a sample that does not decode never reaches the server";
+  const std::string log = server_->log();
+  EXPECT_NE(log.find("cyclone: "), std::string::npos) << log;
+  EXPECT_NE(log.find("ladder/Command"), std::string::npos) << log;
+  std::size_t lines = 0;
+  for (std::size_t at = log.find("cyclone: "); at != std::string::npos; at = log.find("cyclone: ", at + 1)) ++lines;
+  EXPECT_LE(lines, 20u) << "Cyclone's 50 warnings within a second or two were not limited";
+  // The server goes on answering.
+  const client::Ack a = c().call(cmd::pause(), kAnswer);
+  EXPECT_TRUE(a.accepted) << a.reason;
 }
 
 }  // namespace

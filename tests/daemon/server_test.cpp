@@ -4,6 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -268,6 +272,91 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   ASSERT_TRUE(WIFEXITED(*status));
   EXPECT_EQ(WEXITSTATUS(*status), 0);
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
+}
+
+// A hang-up (a closed terminal or SSH session) stops the server as cleanly as SIGTERM: exit 0, the reason logged.
+// (It used to end it at once, without its last lines.)
+TEST_F(Server, SighupStopsCleanlyAndSaysWhy) {
+  start();
+  server_->signal(SIGHUP);
+  const auto status = server_->wait_exit(kAnswer);
+  ASSERT_TRUE(status.has_value()) << "still running after SIGHUP";
+  ASSERT_TRUE(WIFEXITED(*status)) << "ended by a signal: " << WTERMSIG(*status);
+  EXPECT_EQ(WEXITSTATUS(*status), 0);
+  EXPECT_NE(server_->log().find("stopped: SIGHUP received (the terminal hung up)"), std::string::npos)
+      << server_->log();
+}
+
+// A datagram socket of the test's own, standing in for systemd's: what ladderd sends to $NOTIFY_SOCKET.
+class NotifySocket {
+ public:
+  explicit NotifySocket(std::string path) : path_(std::move(path)) {
+    unlink(path_.c_str());
+    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::strncpy(a.sun_path, path_.c_str(), sizeof a.sun_path - 1);
+    bound_ = bind(fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0;
+  }
+  ~NotifySocket() {
+    close(fd_);
+    unlink(path_.c_str());
+  }
+  bool bound() const { return bound_; }
+  // The next message, or nothing within the timeout.
+  std::optional<std::string> next(Millis timeout) {
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, static_cast<int>(timeout.count())) <= 0) return std::nullopt;
+    char buf[512];
+    const ssize_t n = recv(fd_, buf, sizeof buf, 0);
+    return n >= 0 ? std::optional<std::string>(std::string(buf, static_cast<std::size_t>(n))) : std::nullopt;
+  }
+  // The messages that come within `span` that equal `what`.
+  int count(const std::string& what, Millis span) {
+    int n = 0;
+    const auto until = Clock::now() + span;
+    while (Clock::now() < until)
+      if (const auto m = next(std::chrono::duration_cast<Millis>(until - Clock::now()) + Millis(1)); m && *m == what)
+        ++n;
+    return n;
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  bool bound_ = false;
+};
+
+// Under systemd (Type=notify, WatchdogSec=): READY=1 once the first State is on the wire, WATCHDOG=1 twice per
+// watchdog interval (here 200 ms) while the loop runs and none while the process is stopped, STOPPING=1 on SIGTERM.
+TEST_F(Server, TellsSystemdWhenReadyKeepsItsWatchdogAndSaysWhenStopping) {
+  const std::string path = std::string(LADDER_BINARY_DIR) + "/tests/notify-" + std::to_string(getpid()) + ".sock";
+  NotifySocket sock(path);
+  ASSERT_TRUE(sock.bound());
+  setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  setenv("WATCHDOG_USEC", "200000", 1);
+  start();
+  unsetenv("NOTIFY_SOCKET");
+  unsetenv("WATCHDOG_USEC");
+  std::optional<std::string> first;
+  while ((first = sock.next(kAnswer)) && *first == "WATCHDOG=1") {
+  }
+  ASSERT_TRUE(first.has_value()) << "no READY=1";
+  EXPECT_EQ(first->rfind("READY=1\nSTATUS=serving sim id '" + sim_id_ + "'", 0), 0u) << *first;
+  EXPECT_GE(sock.count("WATCHDOG=1", Millis(1000)), 5) << "every 100 ms";
+  server_->signal(SIGSTOP);
+  std::this_thread::sleep_for(Millis(100));
+  sock.count("WATCHDOG=1", Millis(50));  // those sent before the stop
+  EXPECT_EQ(sock.count("WATCHDOG=1", Millis(1000)), 0) << "a stopped server still told the watchdog all was well";
+  server_->signal(SIGCONT);
+  EXPECT_GE(sock.count("WATCHDOG=1", Millis(1000)), 1) << "not after SIGCONT";
+  server_->signal(SIGTERM);
+  std::optional<std::string> m;
+  while ((m = sock.next(kAnswer)) && *m == "WATCHDOG=1") {
+  }
+  ASSERT_TRUE(m.has_value()) << "no STOPPING=1";
+  EXPECT_EQ(*m, "STOPPING=1");
+  EXPECT_TRUE(server_->wait_exit(kAnswer).has_value());
 }
 
 // --tick-log: one line per tick of the real-time loop. Its deadlines lie exactly one period apart (a tick more than
