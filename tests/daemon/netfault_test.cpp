@@ -165,6 +165,7 @@ TEST_F(NetFault, ThousandCommandsUnderTwentyPercentLossAreEachAppliedOnce) {
   ASSERT_TRUE(stats.has_value());
   EXPECT_EQ(stats->commands_received, static_cast<std::uint64_t>(kCommands + 1));
   EXPECT_EQ(stats->commands_accepted, static_cast<std::uint64_t>(kCommands + 1));
+  EXPECT_EQ(stats->commands_duplicate, 0u) << "DDS delivered a command twice";
 
   // The loss was real: each end's classifier dropped about a fifth of what it saw.
   for (char side : {'a', 'b'}) {
