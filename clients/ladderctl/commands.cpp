@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "transport/version.hpp"
 
 #include "replay.hpp"
 
@@ -399,6 +400,7 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   Action action;
   Standalone standalone;
   add_connection(app, conn);
+  app.set_version_flag("--version", std::string("ladderctl ") + kVersion);
   app.fallthrough();  // inherited by the subcommands: --domain, --sim-id and --timeout may also come after one
   declare(app, v, action, standalone);
   app.require_subcommand(interactive ? 1 : 0, 1);

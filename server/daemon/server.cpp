@@ -12,6 +12,7 @@
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
 #include "transport/topics.hpp"
+#include "transport/version.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -45,7 +46,7 @@ using Clock = std::chrono::steady_clock;
 using transport::copy_text;
 using transport::text_of;
 
-constexpr const char* kVersion = "ladderd 0.3.0";
+const std::string kServerVersion = std::string("ladderd ") + ladder::kVersion;
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -885,7 +886,7 @@ void Io::write_outbox() {
     m.generation = generation_ = s.generation;
     copy_text(m.scene_name, s.name);
     copy_text(m.description, s.description);
-    copy_text(m.server_version, kVersion);
+    copy_text(m.server_version, kServerVersion);
     m.blocks = static_cast<std::uint32_t>(s.blocks);
     m.length = s.length;
     m.thickness = s.thickness;
@@ -980,7 +981,7 @@ void Io::record_outbox() {
     m.dt = s.dt;
     m.top = s.top;
     m.masses = s.masses;
-    m.server_version = kVersion;
+    m.server_version = kServerVersion;
     log_->write(transport::kSceneChannel, now, m, false);
   }
   for (const CommandOut& c : out_.commands) {
@@ -1068,7 +1069,7 @@ File open_tick_log(const ServerConfig& config) {
                "# commands: commands applied since the previous tick's end; published: 1 if the tick handed a state "
                "over.\n"
                "# tick start_ns late_ns step_ns steps commands published\n",
-               kVersion, config.sim_id.c_str(), config.rates.physics);
+               kServerVersion.c_str(), config.sim_id.c_str(), config.rates.physics);
   return f;
 }
 
