@@ -1,6 +1,6 @@
 // Fuzz target: bytes -> up to 16 decoded ladder_msg_Command, each applied to a daemon::Session on the built-in
 // classic scene (ladderd's default) followed by a few physics steps, as the server's loop does. Every field comes
-// from the bytes: kinds outside the enum, any block and hinge, strings without their terminating NUL, NaN,
+// from the bytes: kinds that name no command, any block and hinge, strings without their terminating NUL, NaN,
 // infinities and huge or tiny doubles. After every command and step the quantities ladderd publishes in State
 // (sim time, energy, every block's pose, every grip's target and angle) are checked: a non-finite one aborts
 // with its name, so that libFuzzer keeps the input. A refused command and a failed step (the session pauses,
@@ -73,8 +73,10 @@ void text(Bytes& in, bool unterminated, char (&out)[N]) {
 // One command: kind, flags, block, hinge, count, id, a..f, sim_id, client_id, text (make_command_seeds.py).
 ladder_msg_Command command(Bytes& in) {
   ladder_msg_Command c{};
-  const auto kind = in.take<std::uint8_t>();  // >= 0xF0: any int32, mostly outside the enum
-  c.kind = static_cast<ladder_msg_CommandKind>(kind < 0xF0 ? kind % 14 : in.take<std::int32_t>());
+  // 0..15, the enum's range of values (its enumerators go to 13): 14 and 15 name no kind. No more: Cyclone
+  // refuses a Command whose kind exceeds 13 before it is read (the type's ops carry the maximum), and in C++ an
+  // enum object holding a value outside 0..15 is undefined behaviour already where it is read.
+  c.kind = static_cast<ladder_msg_CommandKind>(in.take<std::uint8_t>() % 16);
   const auto flags = in.take<std::uint8_t>();
   c.has_point = flags & 1, c.has_target = flags & 2, c.has_angle = flags & 4;
   c.block = flags & 8 ? in.take<std::int32_t>() : in.take<std::int8_t>();
