@@ -16,9 +16,10 @@ def number(v):
     return struct.pack('<Bd', 200, v)  # tag >= 128: the double as it is
 
 
-def command(kind, block=0, hinge=0, count=0, point=None, target=None, angle=None, a=0.0, b=0.0, e=0.0, text='',
-            steps=2):
-    c, d, f = (point or (0.0, 0.0)) + ((angle if angle is not None else 0.0),)
+def command(kind, block=0, hinge=0, count=0, point=None, target=None, angle=None, a=0.0, b=0.0, e=0.0, f=0.0,
+            text='', steps=2):
+    c, d = point or (0.0, 0.0)
+    f = angle if angle is not None else f  # f without has_angle: a value the command should ignore
     if target:
         a, b = target
     flags = (point is not None) | (target is not None) << 1 | (angle is not None) << 2
@@ -40,6 +41,8 @@ SEEDS = {
     'set-live': [command('set', text='damping.linear=0.5'), command('set', text='sim.gravity=[0,-9.81]'),
                  command('set', text='server.publish_rate=30'), command('reset')],
     'load': [command('load', text='double-ripple'), command('tip')],
+    # Found by command_fuzz on 06c87de: accepted, and State publishes grips[0].angle = nan (issue 18).
+    'found-grab-unheld-nan-angle': [command('grab', block=2, f=float('nan'))],
 }
 
 out_dir = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), 'corpus', 'command_fuzz')
