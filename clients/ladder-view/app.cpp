@@ -14,6 +14,7 @@ bool Feed::update(client::Millis wait) {
   // Only a state that can be drawn is news: one whose SceneInfo (same generation) has come too. The two topics are
   // delivered independently, so a late joiner or a reset can see the State first.
   const client::State* s = state();
+  if (s) drawable_ = Clock::now();
   if (!s || (any_ && s->seq == seq_ && s->generation == generation_ && s->sim_time == sim_time_)) return false;
   any_ = true;
   seq_ = s->seq;
@@ -30,6 +31,15 @@ const client::State* Feed::state() const {
 }
 
 const client::SceneInfo* Feed::info() const { return state() ? &*client_.scene_info() : nullptr; }
+
+std::string Feed::why_undrawable() const {
+  const auto& s = client_.latest_state();
+  const auto& i = client_.scene_info();
+  if (!s) return "no State has come";
+  if (!i) return "no SceneInfo has come";
+  return "the States are of scene generation " + std::to_string(s->generation) + " but the SceneInfo of generation " +
+         std::to_string(i->generation) + " (is another program publishing under this sim id?)";
+}
 
 bool found_server(const Options& o, client::Client& c) {
   if (c.wait_for_server(client::Millis(static_cast<long>(o.timeout * 1000)))) return true;

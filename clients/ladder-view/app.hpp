@@ -36,7 +36,7 @@ struct Options {
 class Feed {
  public:
   using Clock = std::chrono::steady_clock;
-  explicit Feed(client::Client& c) : client_(c), news_(Clock::now()) {}
+  explicit Feed(client::Client& c) : client_(c), news_(Clock::now()), drawable_(news_) {}
   // Reads DDS for `wait` (less if Stats come); true when a new state came that state() gives (its SceneInfo too).
   bool update(client::Millis wait = client::Millis(0));
   // The latest state and its scene info, once both are there and belong to the same scene generation.
@@ -45,6 +45,12 @@ class Feed {
   const std::optional<ladder_msg_Stats>& stats() const { return stats_; }
   // Seconds since the server last sent a drawable state or stats; a stopped server goes quiet.
   double quiet() const { return std::chrono::duration<double>(Clock::now() - news_).count(); }
+  // Seconds since state() last gave a state (since the feed began, if never). States and Stats may keep coming while
+  // no state can be drawn: when the SceneInfo is of another generation than every State (another publisher under our
+  // sim id, or a broken one), the viewer must give up at its timeout rather than wait for ever.
+  double undrawable() const { return std::chrono::duration<double>(Clock::now() - drawable_).count(); }
+  // Why no state can be drawn, for the message: what State and SceneInfo say.
+  std::string why_undrawable() const;
 
  private:
   client::Client& client_;
@@ -53,7 +59,7 @@ class Feed {
   double sim_time_ = -1;
   bool any_ = false;
   std::optional<ladder_msg_Stats> stats_;
-  Clock::time_point news_;
+  Clock::time_point news_, drawable_;
 };
 
 int run_png(const Options& o);

@@ -108,6 +108,12 @@ int run_ascii(const Options& o) {
   while (!g_stop && (o.frames == 0 || frames < o.frames)) {
     fresh = feed.update(period) || fresh;
     const client::State* s = feed.state();
+    if (!s && feed.undrawable() > o.timeout) {
+      if (tty) std::fputs("\x1b[?25h\n", stdout);
+      std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
+                << " s: " << feed.why_undrawable() << "\n";
+      return kNoServer;
+    }
     const bool waiting = feed.quiet() > 3;
     if (!s || (!fresh && !waiting)) continue;
     int cols = o.width, rows = o.height;

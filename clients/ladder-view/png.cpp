@@ -21,6 +21,11 @@ int run_png(const Options& o) {
       info = *feed.info();
       break;
     }
+    if (feed.undrawable() > o.timeout) {
+      std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
+                << " s: " << feed.why_undrawable() << "\n";
+      return kNoServer;
+    }
     if (feed.quiet() > o.timeout) {
       std::cerr << "ladder-view: ladderd '" << o.sim_id << "' stopped talking before t = " << o.at.value_or(0)
                 << " s\n";

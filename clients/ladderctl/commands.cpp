@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "transport/version.hpp"
 
 #include "replay.hpp"
 
@@ -106,7 +107,9 @@ void print_stats(const ladder_msg_Stats& s, bool json) {
                 "\"step_p99_us\":%.4g,\"step_max_us\":%.4g,\"late_p50_us\":%.4g,\"late_p99_us\":%.4g,"
                 "\"late_max_us\":%.4g,\"missed_deadlines\":%llu,\"solver_iterations\":%u,\"solver_residual\":%.3g,"
                 "\"energy\":%.9g,\"max_hinge_error\":%.3g,\"commands_received\":%llu,\"commands_accepted\":%llu,"
-                "\"commands_refused\":%llu,\"commands_rate_limited\":%llu,\"states_published\":%llu}\n",
+                "\"commands_refused\":%llu,\"commands_rate_limited\":%llu,\"commands_unanswered\":%llu,"
+                "\"commands_duplicate\":%llu,\"commands_undecodable\":%llu,\"write_failures\":%llu,"
+                "\"states_published\":%llu}\n",
                 s.sim_time, static_cast<unsigned long long>(s.steps), s.real_time_factor, s.step_p50_us,
                 s.step_p99_us, s.step_max_us, s.late_p50_us, s.late_p99_us, s.late_max_us,
                 static_cast<unsigned long long>(s.missed_deadlines), s.solver_iterations, s.solver_residual, s.energy,
@@ -114,15 +117,21 @@ void print_stats(const ladder_msg_Stats& s, bool json) {
                 static_cast<unsigned long long>(s.commands_accepted),
                 static_cast<unsigned long long>(s.commands_refused),
                 static_cast<unsigned long long>(s.commands_rate_limited),
+                static_cast<unsigned long long>(s.commands_unanswered),
+                static_cast<unsigned long long>(s.commands_duplicate),
+                static_cast<unsigned long long>(s.commands_undecodable),
+                static_cast<unsigned long long>(s.write_failures),
                 static_cast<unsigned long long>(s.states_published));
   } else {
     std::printf("t = %.3f s  real-time factor %.3f  step p50 %.1f us p99 %.1f us  tick late p99 %.0f us  missed %llu"
-                "  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited)\n",
+                "  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited, %llu "
+                "unanswered)\n",
                 s.sim_time, s.real_time_factor, s.step_p50_us, s.step_p99_us, s.late_p99_us,
                 static_cast<unsigned long long>(s.missed_deadlines), s.max_hinge_error, s.energy,
                 static_cast<unsigned long long>(s.commands_received),
                 static_cast<unsigned long long>(s.commands_refused),
-                static_cast<unsigned long long>(s.commands_rate_limited));
+                static_cast<unsigned long long>(s.commands_rate_limited),
+                static_cast<unsigned long long>(s.commands_unanswered));
   }
 }
 
@@ -205,11 +214,16 @@ int status(Client& client, const Connection& c) {
                 stats->window, stats->real_time_factor, stats->step_p50_us, stats->step_p99_us, stats->step_max_us,
                 stats->late_p50_us, stats->late_p99_us, stats->late_max_us,
                 static_cast<unsigned long long>(stats->missed_deadlines), stats->max_hinge_error);
-    std::printf("commands: %llu received, %llu accepted, %llu refused, %llu rate-limited\n",
+    std::printf("commands: %llu received, %llu accepted, %llu refused, %llu rate-limited, %llu unanswered (a "
+                "client over its rate), %llu repeated ids, %llu undecodable; %llu failed writes\n",
                 static_cast<unsigned long long>(stats->commands_received),
                 static_cast<unsigned long long>(stats->commands_accepted),
                 static_cast<unsigned long long>(stats->commands_refused),
-                static_cast<unsigned long long>(stats->commands_rate_limited));
+                static_cast<unsigned long long>(stats->commands_rate_limited),
+                static_cast<unsigned long long>(stats->commands_unanswered),
+                static_cast<unsigned long long>(stats->commands_duplicate),
+                static_cast<unsigned long long>(stats->commands_undecodable),
+                static_cast<unsigned long long>(stats->write_failures));
   }
   std::printf("live settings:\n");
   std::istringstream lines(info->options);
@@ -386,6 +400,7 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   Action action;
   Standalone standalone;
   add_connection(app, conn);
+  app.set_version_flag("--version", std::string("ladderctl ") + kVersion);
   app.fallthrough();  // inherited by the subcommands: --domain, --sim-id and --timeout may also come after one
   declare(app, v, action, standalone);
   app.require_subcommand(interactive ? 1 : 0, 1);

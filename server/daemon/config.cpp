@@ -1,5 +1,7 @@
 #include "daemon/config.hpp"
 
+#include "transport/dds.hpp"
+
 #include <toml++/toml.h>
 
 #include <array>
@@ -80,6 +82,9 @@ const std::vector<Key>& keys() {
       integer_key("commands.per_tick", 1, 100'000,
                   [](DaemonConfig& c, long long v) { c.server.per_tick = static_cast<std::size_t>(v); }),
       number_key("commands.reader_wait", [](DaemonConfig& c, double v) { c.server.reader_wait = v; }),
+      number_key("commands.rate", [](DaemonConfig& c, double v) { c.server.rate = v; }),
+      integer_key("commands.burst", 1, transport::kAckDepth / 2,
+                  [](DaemonConfig& c, long long v) { c.server.burst = static_cast<double>(v); }),
       number_key("commands.max_impulse", [](DaemonConfig& c, double v) { c.server.limits.max_impulse = v; }),
       number_key("commands.max_force", [](DaemonConfig& c, double v) { c.server.limits.max_force = v; }),
       number_key("commands.max_duration", [](DaemonConfig& c, double v) { c.server.limits.max_duration = v; }),
@@ -124,6 +129,7 @@ void check_config(const DaemonConfig& c) {
                       "server.spin_us");
   if (!(s.reader_wait >= 0 && s.reader_wait <= 3600))
     throw ConfigError("commands.reader_wait must be from 0 (do not wait) to 3600 s", "commands.reader_wait");
+  positive(s.rate, 1e6, "commands.rate");
   positive(s.limits.max_impulse, 1e6, "commands.max_impulse");
   positive(s.limits.max_force, 1e9, "commands.max_force");
   positive(s.limits.max_duration, 1e9, "commands.max_duration");

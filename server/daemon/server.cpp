@@ -1,6 +1,8 @@
 #include "daemon/server.hpp"
 
 #include "daemon/handoff.hpp"
+#include "daemon/intake.hpp"
+#include "daemon/notify.hpp"
 #include "daemon/resimulate.hpp"
 #include "ladderlcm/checkpoint_t.hpp"
 #include "ladderlcm/command_t.hpp"
@@ -10,6 +12,7 @@
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
 #include "transport/topics.hpp"
+#include "transport/version.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -32,6 +35,7 @@
 #include <thread>
 #include <tuple>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace ladder::daemon {
@@ -42,9 +46,35 @@ using Clock = std::chrono::steady_clock;
 using transport::copy_text;
 using transport::text_of;
 
-constexpr const char* kVersion = "ladderd 0.3.0";
+const std::string kServerVersion = std::string("ladderd ") + ladder::kVersion;
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// Cyclone's own warnings and errors, in ladderd's log. A hostile writer can make Cyclone warn once per sample (one
+// it cannot deserialize), so at most 10 lines a second go through; the rest are counted in the next line.
+void cyclone_line(const char* message) {
+  static std::mutex mutex;
+  static Clock::time_point window{};
+  static int lines = 0;
+  static std::uint64_t suppressed = 0;
+  std::lock_guard lock(mutex);
+  const Clock::time_point now = Clock::now();
+  if (now - window >= std::chrono::seconds(1)) window = now, lines = 0;
+  if (++lines > 10) {
+    ++suppressed;
+    return;
+  }
+  if (suppressed > 0)
+    spdlog::warn("cyclone: {} (and {} more lines not shown)", message, std::exchange(suppressed, 0));
+  else
+    spdlog::warn("cyclone: {}", message);
+}
 
 // What the physics thread hands the I/O thread (besides the latest state, which goes through a Latest buffer).
 struct EventOut {
@@ -84,8 +114,13 @@ struct TickRecord {
   std::uint32_t steps = 0, commands = 0;
   bool published = false;
 };
+// An answer of the physics thread, for the sender whose record keeps it (to answer a repeated command again).
+struct AckOut {
+  ladder_msg_CommandAck ack;
+  SenderKey sender = 0;
+};
 struct Outbox {
-  std::vector<ladder_msg_CommandAck> acks;
+  std::vector<AckOut> acks;
   std::vector<CommandOut> commands;       // only when recording
   std::vector<CheckpointOut> checkpoints;  // only when recording
   std::vector<EventOut> events;
@@ -100,15 +135,17 @@ struct Shared {
   const ServerConfig& config;
   std::mutex inbox_mutex;
   std::condition_variable inbox_cv;  // a command came: wakes the physics thread between ticks
-  std::deque<ladder_msg_Command> inbox;
+  Inbox inbox;
   std::mutex outbox_mutex;
   Outbox outbox;
   Latest<StateFrame> state;
-  std::atomic<std::uint64_t> received{0}, rate_limited{0}, states_published{0}, states_dropped{0},
-      events_published{0};
+  std::atomic<std::uint64_t> received{0}, rate_limited{0}, duplicates{0}, unanswered{0}, states_published{0},
+      states_dropped{0}, events_published{0}, write_failures{0};
   std::atomic<bool> physics_done{false};
   std::atomic<bool> abort{false};  // the I/O thread failed: the physics thread stops too
   const transport::Waiter* waiter = nullptr;  // to wake the I/O thread
+  const Notifier* notifier = nullptr;          // systemd's, when it started us
+  std::atomic<Clock::rep> io_alive{0};         // when the I/O thread last went round its loop
 };
 
 // The answer to command c: addressed to its client, with the outcome; the caller adds when it took effect.
@@ -224,6 +261,7 @@ class Physics {
   void checkpoint();
   void log_tick(Clock::time_point start, Clock::duration late);
   void hand_over_ticks();
+  void keep_watchdog(Clock::time_point now);
   template <class F>
   void with_outbox(F&& f) {
     std::lock_guard lock(sh_.outbox_mutex);
@@ -249,6 +287,7 @@ class Physics {
   std::vector<TickRecord> ticks_;  // ticks not yet handed to the I/O thread
   double next_checkpoint_ = 0;  // [s of sim time]
   bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
+  Clock::time_point next_watchdog_{};  // when systemd's watchdog is next told that all is well
 };
 
 void Physics::checkpoint() {
@@ -268,31 +307,31 @@ void Physics::push_scene() {
 }
 
 void Physics::take_commands() {
-  std::vector<ladder_msg_Command> batch;
+  std::vector<Incoming> batch;
   {
     std::lock_guard lock(sh_.inbox_mutex);
-    const std::size_t n = std::min(sh_.inbox.size(), sh_.config.per_tick - taken_);
-    batch.assign(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
-    sh_.inbox.erase(sh_.inbox.begin(), sh_.inbox.begin() + static_cast<std::ptrdiff_t>(n));
+    sh_.inbox.take(sh_.config.per_tick - taken_, batch);
   }
   if (batch.empty()) return;
   taken_ += batch.size();
   dirty_ = true;  // even a refused command gets a fresh state, so a client can see that nothing changed
   // One deterministic order for the commands taken together (those that arrived during a step, or queued while
   // spinning): client, then id. A command that arrives while the thread waits is taken on its own, as it comes.
-  std::stable_sort(batch.begin(), batch.end(), [](const ladder_msg_Command& a, const ladder_msg_Command& b) {
+  std::stable_sort(batch.begin(), batch.end(), [](const Incoming& x, const Incoming& y) {
+    const ladder_msg_Command &a = x.command, &b = y.command;
     const int c = std::strncmp(a.client_id, b.client_id, sizeof a.client_id);
     return c < 0 || (c == 0 && a.command_id < b.command_id);
   });
-  std::vector<ladder_msg_CommandAck> acks(batch.size());
+  std::vector<AckOut> acks(batch.size());
   std::vector<CommandOut> commands;
   for (std::size_t i = 0; i < batch.size(); ++i) {
-    const ladder_msg_Command& c = batch[i];
+    const ladder_msg_Command& c = batch[i].command;
     const double t = session_.sim().time();
     const std::uint64_t step = session_.sim().steps();
     const Outcome r = session_.apply(c);
     const bool restarted = session_.generation() != scene_generation_;
-    ladder_msg_CommandAck& a = acks[i] = ack_for(c, r);
+    acks[i] = {ack_for(c, r), batch[i].sender};
+    ladder_msg_CommandAck& a = acks[i].ack;
     // A command that restarted the scene took effect at the new scene's start.
     a.sim_time = restarted ? session_.sim().time() : t;
     a.step = restarted ? session_.sim().steps() : step;
@@ -463,6 +502,10 @@ void Physics::publish_stats(Clock::time_point now) {
   s.commands_accepted = accepted_;
   s.commands_refused = refused_;
   s.commands_rate_limited = sh_.rate_limited.load();
+  s.commands_duplicate = sh_.duplicates.load();
+  s.commands_unanswered = sh_.unanswered.load();
+  s.commands_undecodable = transport::undecodable_samples();
+  s.write_failures = sh_.write_failures.load();
   s.states_published = sh_.states_published.load();
   s.states_dropped = sh_.states_dropped.load();
   s.events_published = sh_.events_published.load();
@@ -484,10 +527,20 @@ void Physics::run(const std::atomic<bool>& stop) {
     hand_over_ticks();  // the ticks before a failure are the ones worth reading
     throw;
   }
+  sh_.notifier->send("STOPPING=1");
   publish_state();
   hand_over_ticks();
   sh_.physics_done = true;
   sh_.waiter->wake();
+}
+
+// systemd's watchdog (WatchdogSec=) hears from the physics loop, twice per interval, only while both threads go
+// round: a loop wedged in a step, or an I/O thread wedged in DDS, goes silent and systemd restarts the server.
+void Physics::keep_watchdog(Clock::time_point now) {
+  const auto interval = *sh_.notifier->watchdog();
+  next_watchdog_ = now + interval / 2;
+  const Clock::time_point io{Clock::duration(sh_.io_alive.load(std::memory_order_relaxed))};
+  if (now - io < interval / 2) sh_.notifier->send("WATCHDOG=1");
 }
 
 // The real-time loop, until `stop` or an I/O failure.
@@ -523,6 +576,7 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     }
     if (seconds(now - last_stats_) >= 1.0 / sh_.config.stats_rate) publish_stats(now);
     if (tick_log_) log_tick(start, late);
+    if (sh_.notifier->watchdog() && now >= next_watchdog_) keep_watchdog(now);
     sh_.waiter->wake();
     deadline += period_d;
     if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
@@ -557,23 +611,41 @@ class Io {
  private:
   // A client's command writer: whether this server can answer it yet (its ack and event writers have found a
   // reader in the writer's participant), and its commands meanwhile.
+  // Also what it may send (its rate), what it sent lately (repeats are answered, not applied) and what this server
+  // could not answer it, for the log.
   struct Sender {
+    Sender(const ServerConfig& c, Clock::time_point now)
+        : first_seen(now), commands(c.rate, c.burst, now), refusals(c.rate, c.burst, now), next_report(now) {}
     std::string client;                     // the client id of its first command, for the log
     std::optional<dds_guid_t> participant;  // none: the writer had left when its first command was read
     Clock::time_point first_seen, next_check;
     bool ready = false;
-    std::deque<ladder_msg_Command> held;  // in the order they came
+    std::deque<Incoming> held;  // in the order they came
+    Bucket commands, refusals;  // commands.rate and commands.burst, each
+    RecentCommands recent;
+    std::uint64_t rate_limited = 0, unanswered = 0;  // since the last report
+    Clock::time_point next_report;
   };
 
   void take_commands();
-  Sender& sender(dds_instance_handle_t writer, const ladder_msg_Command& c);
+  void admit(Sender& s, const ladder_msg_Command& c, dds_instance_handle_t writer, Clock::time_point now,
+             std::vector<Incoming>& ready);
+  Sender& sender(dds_instance_handle_t writer, const ladder_msg_Command& c, Clock::time_point now);
   void check(Sender& s, Clock::time_point now);
-  void release_answerable(std::vector<ladder_msg_Command>& ready);
+  void release_answerable(std::vector<Incoming>& ready);
+  void queue_for_physics(std::vector<Incoming>& ready);
+  void refuse_for_rate(const Incoming& in, const std::string& reason);
+  void report(Sender& s, Clock::time_point now);
   void forget_departed_senders();
   void refuse_leftovers();
   void write_outbox();
   void write_state();
   void refuse(const ladder_msg_Command& c, const std::string& reason);
+  void answer(const ladder_msg_Command& c, const Answer& a);
+  void remember(const AckOut& a);
+  // Counts a failed write (a write that Cyclone could not take: it does not end the server) and logs it, once a
+  // topic at first and then at most every 10 s.
+  void written(dds_return_t rc, const char* topic);
 
   void record_outbox();
   void record_state(const StateFrame& f, std::uint64_t seq);
@@ -597,64 +669,152 @@ class Io {
   std::unordered_map<dds_instance_handle_t, Sender> senders_;
   std::vector<dds_instance_handle_t> waiting_;  // the senders not ready yet
   std::size_t forget_above_ = 256;              // senders known before those that have left are forgotten
+  std::unordered_map<std::string, Clock::time_point> write_failure_logged_;  // by topic
 };
+
+void Io::written(dds_return_t rc, const char* topic) {
+  if (rc >= 0) return;
+  sh_.write_failures.fetch_add(1, std::memory_order_relaxed);
+  const Clock::time_point now = Clock::now();
+  const auto last = write_failure_logged_.find(topic);
+  if (last != write_failure_logged_.end() && now - last->second < std::chrono::seconds(10)) return;
+  write_failure_logged_[topic] = now;
+  spdlog::warn("a write on {} failed: {} (the sample is lost to its readers; the server goes on; {} writes have "
+               "failed so far)",
+               topic, dds_strretcode(rc), sh_.write_failures.load());
+}
 
 void Io::refuse(const ladder_msg_Command& c, const std::string& reason) {
   ladder_msg_CommandAck a = ack_for(c, {false, reason});
   a.sim_time = -1;  // never reached the simulation
-  ack_w_.write(a);
+  written(ack_w_.try_write(a), "ladder/CommandAck");
+}
+
+// A repeated command's answer: the first one's, again.
+void Io::answer(const ladder_msg_Command& c, const Answer& r) {
+  ladder_msg_CommandAck a = ack_for(c, {r.accepted, r.reason});
+  a.sim_time = r.sim_time;
+  a.step = r.step;
+  a.command_seq = r.command_seq;
+  written(ack_w_.try_write(a), "ladder/CommandAck");
+}
+
+void Io::remember(const AckOut& out) {
+  const auto s = senders_.find(out.sender);
+  if (s == senders_.end()) return;  // forgotten meanwhile (it had left)
+  const ladder_msg_CommandAck& a = out.ack;
+  s->second.recent.answered(a.client_id, a.command_id,
+                            {a.accepted, text_of(a.reason), a.sim_time, a.step, a.command_seq});
 }
 
 // Commands go to the physics thread in the order they arrived, with one exception: a sender's commands wait until
 // this server's ack and event writers have found a reader in the sender's participant (commands.reader_wait at
 // most). Discovery can bring a client's command writer before its readers, and an ack written then reaches no one.
-// The commands of one sender keep their order.
+// The commands of one sender keep their order. This thread takes every sample as it comes, whatever the senders
+// do: what a sender may not send is refused or dropped here, in constant time, so that a flood neither grows this
+// server's memory nor delays another sender's commands (docs/server.md, "Intake").
 void Io::take_commands() {
   const std::string& id = sh_.config.sim_id;
-  const std::size_t queue = sh_.config.queue;
-  std::vector<ladder_msg_Command> ready, over;
+  const Clock::time_point now = Clock::now();
+  std::vector<Incoming> ready;
   std::size_t arrived = 0;
   command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t& info) {
     if (text_of(c.sim_id) != id) return;  // commands for other ladders on this domain are not ours
     ++arrived;
-    Sender& s = sender(info.publication_handle, c);
-    if (s.ready)
-      ready.push_back(c);
-    else if (s.held.size() < queue)
-      s.held.push_back(c);
-    else
-      over.push_back(c);  // a sender not yet answerable holds no more than the queue
+    admit(sender(info.publication_handle, c, now), c, info.publication_handle, now, ready);
   });
   sh_.received.fetch_add(arrived);
   if (!waiting_.empty()) release_answerable(ready);
-  if (!ready.empty()) {
-    {
-      std::lock_guard lock(sh_.inbox_mutex);
-      for (const ladder_msg_Command& c : ready) {
-        if (sh_.inbox.size() >= queue)
-          over.push_back(c);
-        else
-          sh_.inbox.push_back(c);
-      }
-    }
-    sh_.inbox_cv.notify_one();
+  if (!ready.empty()) queue_for_physics(ready);
+  for (auto& [writer, s] : senders_)
+    if (s.rate_limited + s.unanswered > 0 && now >= s.next_report) report(s, now);
+}
+
+// One command of sender s: a repeat is answered again (or waits for the answer it shares), a command over the
+// sender's rate is refused (within the refusals' own rate) or dropped, and the rest go on, held while the sender
+// cannot hear answers yet.
+void Io::admit(Sender& s, const ladder_msg_Command& c, dds_instance_handle_t writer, Clock::time_point now,
+               std::vector<Incoming>& ready) {
+  switch (s.recent.note(c)) {
+    case RecentCommands::Seen::Answered:
+      sh_.duplicates.fetch_add(1, std::memory_order_relaxed);
+      if (s.refusals.take(now)) answer(c, *s.recent.answer(c));
+      return;
+    case RecentCommands::Seen::Pending:  // its answer, when it comes, is theirs too
+      sh_.duplicates.fetch_add(1, std::memory_order_relaxed);
+      return;
+    case RecentCommands::Seen::New:
+      break;
   }
-  if (over.empty()) return;
-  sh_.rate_limited.fetch_add(over.size());
-  spdlog::warn("rate limit: {} command(s) refused ({} already queued)", over.size(), queue);
-  for (const ladder_msg_Command& c : over)
-    refuse(c, "rate limit: " + std::to_string(queue) + " commands are already waiting; send fewer");
+  if (!s.commands.take(now)) {
+    refuse_for_rate({c, writer},
+                    "rate limit: more than " + number(sh_.config.rate) + " commands a second (commands.rate, " +
+                        number(sh_.config.burst) + " at once: commands.burst) from this client; send fewer");
+    return;
+  }
+  if (!s.ready) {
+    if (s.held.size() < sh_.config.queue) {
+      s.held.push_back({c, writer});
+      return;
+    }
+    refuse_for_rate({c, writer}, "rate limit: " + std::to_string(sh_.config.queue) +
+                                     " commands of this client are already waiting (commands.queue); send fewer");
+    return;
+  }
+  ready.push_back({c, writer});
+}
+
+// Commands refused before they reach the simulation: answered while the sender's refusals last, else dropped
+// unanswered. Either way counted, and reported in the log once a second per sender.
+void Io::refuse_for_rate(const Incoming& in, const std::string& reason) {
+  const auto it = senders_.find(in.sender);
+  if (it == senders_.end()) return;
+  Sender& s = it->second;
+  s.recent.forget(in.command);  // sent again later, it is a new command
+  if (s.refusals.take(Clock::now())) {
+    sh_.rate_limited.fetch_add(1, std::memory_order_relaxed);
+    ++s.rate_limited;
+    refuse(in.command, reason);
+  } else {
+    sh_.unanswered.fetch_add(1, std::memory_order_relaxed);
+    ++s.unanswered;
+  }
+}
+
+void Io::report(Sender& s, Clock::time_point now) {
+  if (s.unanswered > 0)
+    spdlog::warn("client '{}' sends faster than commands.rate ({}/s): {} of its commands refused and {} dropped "
+                 "unanswered (its refusals are limited to the same rate) since the last report",
+                 s.client, number(sh_.config.rate), s.rate_limited, s.unanswered);
+  else
+    spdlog::warn("client '{}': {} of its commands refused for rate since the last report", s.client, s.rate_limited);
+  s.rate_limited = s.unanswered = 0;
+  s.next_report = now + std::chrono::seconds(1);
+}
+
+// Each sender's commands join its own queue of the inbox (commands.queue at most); the physics thread takes the
+// queues in turn.
+void Io::queue_for_physics(std::vector<Incoming>& ready) {
+  std::vector<Incoming> over;
+  {
+    std::lock_guard lock(sh_.inbox_mutex);
+    for (Incoming& in : ready)
+      if (!sh_.inbox.push(in, sh_.config.queue)) over.push_back(std::move(in));
+  }
+  sh_.inbox_cv.notify_one();
+  for (const Incoming& in : over)
+    refuse_for_rate(in, "rate limit: " + std::to_string(sh_.config.queue) +
+                            " commands of this client are already waiting (commands.queue); send fewer");
 }
 
 // The sender of a command from `writer`, known or new. A new one is checked at once: usually it is ready.
-Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c) {
+Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c, Clock::time_point now) {
   if (const auto known = senders_.find(writer); known != senders_.end()) return known->second;
   if (senders_.size() >= forget_above_) forget_departed_senders();
-  Sender& s = senders_[writer];
+  Sender& s = senders_.try_emplace(writer, sh_.config, now).first->second;
   s.client = text_of(c.client_id);
   s.participant = transport::writer_participant(command_r_.entity(), writer);
-  s.first_seen = Clock::now();
-  check(s, s.first_seen);
+  check(s, now);
   if (!s.ready) {
     waiting_.push_back(writer);
     spdlog::debug("client '{}': its commands wait until its ack and event readers are found", s.client);
@@ -677,7 +837,7 @@ void Io::check(Sender& s, Clock::time_point now) {
 }
 
 // Moves the commands of the senders that have become ready to `ready`, in their order.
-void Io::release_answerable(std::vector<ladder_msg_Command>& ready) {
+void Io::release_answerable(std::vector<Incoming>& ready) {
   const Clock::time_point now = Clock::now();
   std::erase_if(waiting_, [&](dds_instance_handle_t writer) {
     Sender& s = senders_.at(writer);
@@ -702,17 +862,17 @@ void Io::forget_departed_senders() {
 // At the stop: the commands the physics thread did not take, and those still held, are refused. (A sender still
 // held may not hear it.)
 void Io::refuse_leftovers() {
-  std::deque<ladder_msg_Command> left;
+  std::vector<Incoming> left;
   {
     std::lock_guard lock(sh_.inbox_mutex);
-    left.swap(sh_.inbox);
+    left = sh_.inbox.drain();
   }
   for (dds_instance_handle_t writer : waiting_) {
-    std::deque<ladder_msg_Command>& held = senders_.at(writer).held;
+    std::deque<Incoming>& held = senders_.at(writer).held;
     left.insert(left.end(), held.begin(), held.end());
     held.clear();
   }
-  for (const ladder_msg_Command& c : left) refuse(c, "ladderd stopped before it could take this command");
+  for (const Incoming& in : left) refuse(in.command, "ladderd stopped before it could take this command");
 }
 
 void Io::write_outbox() {
@@ -726,7 +886,7 @@ void Io::write_outbox() {
     m.generation = generation_ = s.generation;
     copy_text(m.scene_name, s.name);
     copy_text(m.description, s.description);
-    copy_text(m.server_version, kVersion);
+    copy_text(m.server_version, kServerVersion);
     m.blocks = static_cast<std::uint32_t>(s.blocks);
     m.length = s.length;
     m.thickness = s.thickness;
@@ -738,9 +898,12 @@ void Io::write_outbox() {
     m.publish_rate = s.rates.publish;
     m.real_time_factor = s.rates.real_time_factor;
     copy_text(m.options, s.options);
-    scene_w_.write(m);
+    written(scene_w_.try_write(m), "ladder/SceneInfo");
   }
-  for (const ladder_msg_CommandAck& a : out_.acks) ack_w_.write(a);
+  for (const AckOut& a : out_.acks) {
+    written(ack_w_.try_write(a.ack), "ladder/CommandAck");
+    remember(a);
+  }
   for (const EventOut& e : out_.events) {
     ladder_msg_Event m{};
     copy_text(m.sim_id, sh_.config.sim_id);
@@ -750,10 +913,10 @@ void Io::write_outbox() {
     m.hinge = e.hinge;
     m.energy_removed = e.energy_removed;
     copy_text(m.detail, e.detail);
-    event_w_.write(m);
+    written(event_w_.try_write(m), "ladder/Event");
   }
   sh_.events_published.fetch_add(out_.events.size());
-  for (const ladder_msg_Stats& s : out_.stats) stats_w_.write(s);
+  for (const ladder_msg_Stats& s : out_.stats) written(stats_w_.try_write(s), "ladder/Stats");
   if (log_) record_outbox();
   if (tick_log_) write_ticks();
   out_.ticks.clear();
@@ -780,8 +943,10 @@ void Io::write_state() {
   // Borrowed buffers: DDS serialises them in write() and must not free them.
   transport::lend_blocks(m, f->poses, f->hinge_corner, f->hinge_status, f->hinge_flips);
   transport::lend(m.grips, f->grips);
-  state_w_.write(m);
-  sh_.states_published.fetch_add(1, std::memory_order_relaxed);
+  written(state_w_.try_write(m), "ladder/State");
+  if (sh_.states_published.fetch_add(1, std::memory_order_relaxed) == 0)  // the first is on the wire: ready
+    sh_.notifier->send("READY=1\nSTATUS=serving sim id '" + sh_.config.sim_id + "' on DDS domain " +
+                       std::to_string(sh_.config.domain));
   if (log_) record_state(*f, m.seq);
 }
 
@@ -816,7 +981,7 @@ void Io::record_outbox() {
     m.dt = s.dt;
     m.top = s.top;
     m.masses = s.masses;
-    m.server_version = kVersion;
+    m.server_version = kServerVersion;
     log_->write(transport::kSceneChannel, now, m, false);
   }
   for (const CommandOut& c : out_.commands) {
@@ -876,6 +1041,7 @@ void Io::record_state(const StateFrame& f, std::uint64_t seq) {
 
 void Io::run() {
   while (true) {
+    sh_.io_alive.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed);
     const bool done = sh_.physics_done.load();
     waiter_.wait(std::chrono::milliseconds(5));
     take_commands();
@@ -903,7 +1069,7 @@ File open_tick_log(const ServerConfig& config) {
                "# commands: commands applied since the previous tick's end; published: 1 if the tick handed a state "
                "over.\n"
                "# tick start_ns late_ns step_ns steps commands published\n",
-               kVersion, config.sim_id.c_str(), config.rates.physics);
+               kServerVersion.c_str(), config.sim_id.c_str(), config.rates.physics);
   return f;
 }
 
@@ -932,6 +1098,13 @@ int run_server(const ServerConfig& config, const scene::Scene& scene, const std:
 int run_server(const ServerConfig& config, std::unique_ptr<Session> session, const std::atomic<bool>& stop) {
   const scene::Scene& scene = session->sim().scene();
   Shared shared(config);
+  const Notifier notifier;
+  shared.notifier = &notifier;
+  if (notifier.enabled())
+    spdlog::info("telling systemd when ready and stopping{}",
+                 notifier.watchdog() ? ", and its watchdog every " +
+                                           std::to_string(notifier.watchdog()->count() / 2000) + " ms"
+                                     : std::string());
   std::unique_ptr<transport::LogWriter> log;
   if (!config.record.empty()) {
     try {
@@ -948,6 +1121,7 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   // the physics thread waits for the hand-off's lock.
   const bool realtime =
       config.realtime_priority > 0 && run_realtime("I/O", std::max(1, config.realtime_priority - 1));
+  transport::route_cyclone_log(cyclone_line, "ladder/Command");
   Io io(shared, log.get(), tick_log.get());
   Physics physics(shared, std::move(session));
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "

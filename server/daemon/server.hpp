@@ -20,8 +20,15 @@ struct ServerConfig {
   Rates rates;
   double stats_rate = 1.0;        // Stats per wall second
   Limits limits;
-  std::size_t queue = 1000;       // commands waiting for the physics thread; beyond it they are refused
-  std::size_t per_tick = 100;     // commands applied per tick at most
+  // Per sender (one client's command writer): commands waiting for the physics thread, beyond which they are
+  // refused; and a token bucket of `rate` commands a second, `burst` at once. A sender over its rate is refused,
+  // at most `rate` refusals a second as well; the commands beyond those go unanswered, counted and logged
+  // (docs/server.md, "Intake"). `burst` stays at most half transport::kAckDepth, so that a client's answers and
+  // refusals all fit in the ack writer's history.
+  std::size_t queue = 1000;
+  double rate = 1000;
+  double burst = 1000;
+  std::size_t per_tick = 100;     // commands applied per tick at most, taken from the senders in turn
   // [s] the longest a new client's commands wait for this server to find its ack and event readers (an answer
   // written before then would reach no one); 0 = not at all.
   double reader_wait = 2.0;

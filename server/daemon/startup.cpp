@@ -7,7 +7,12 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <csignal>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 
 namespace ladder::daemon {
@@ -19,6 +24,14 @@ volatile std::sig_atomic_t g_signal = 0;
 extern "C" void on_signal(int sig) {
   g_signal = sig;
   if (g_stop) g_stop->store(true);  // lock-free atomic: async-signal-safe
+}
+
+// Whether standard error is the journal's stream: systemd sets JOURNAL_STREAM to its device and inode.
+bool to_journal() {
+  const char* stream = std::getenv("JOURNAL_STREAM");
+  struct stat st {};
+  if (stream == nullptr || fstat(STDERR_FILENO, &st) != 0) return false;
+  return std::string(stream) == std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
 }
 }  // namespace
 
@@ -34,8 +47,35 @@ void setup_logging(const DaemonConfig& config) {
   auto logger = std::make_shared<spdlog::logger>("ladderd", sinks.begin(), sinks.end());
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(config.log_level));
-  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^[%l]%$ %v");
+  // Under systemd the journal stamps each line itself: no second timestamp, no colour codes.
+  spdlog::set_pattern(to_journal() ? "[%l] %v" : "%Y-%m-%d %H:%M:%S.%e %^[%l]%$ %v");
   spdlog::flush_on(spdlog::level::info);
+}
+
+std::string default_scenes_dir(const std::string& installed, const std::string& source_tree) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path beside = exe.parent_path().parent_path() / installed;
+    if (fs::is_directory(beside, ec)) return beside.lexically_normal().string();
+  }
+  return source_tree;
+}
+
+std::string find_scene(const std::string& scene, const std::string& scenes_dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_regular_file(scene, ec)) return scene;
+  if (scene.find('/') == std::string::npos && !scene.starts_with(".")) {
+    const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
+    if (fs::is_regular_file(named, ec)) return named.string();
+  }
+  std::string available;
+  for (const auto& entry : fs::directory_iterator(scenes_dir, ec))
+    if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
+  throw std::runtime_error("--scene " + scene + ": no such file, and no scene of that name in " + scenes_dir +
+                           " (" + (available.empty() ? "none there" : "there: " + available) + ")");
 }
 
 scene::Scene first_scene(const DaemonConfig& config, const std::vector<std::string>& overrides) {
@@ -110,12 +150,18 @@ void catch_stop_signals(std::atomic<bool>& stop) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  // A hang-up (the terminal or SSH session that started the server closed) stops it as cleanly as SIGTERM, with
+  // its last log lines and the session log closed, instead of the default's sudden death.
+  sigaction(SIGHUP, &sa, nullptr);
+  // A closed pipe on standard error (ladderd 2>&1 | head) makes a write fail with EPIPE instead of killing it.
+  signal(SIGPIPE, SIG_IGN);
 }
 
 void log_stop_reason() {
   const int sig = g_signal;
   if (sig == SIGTERM) spdlog::info("stopped: SIGTERM received");
   else if (sig == SIGINT) spdlog::info("stopped: SIGINT received (Ctrl-C)");
+  else if (sig == SIGHUP) spdlog::info("stopped: SIGHUP received (the terminal hung up)");
   else spdlog::info("stopped");
 }
 

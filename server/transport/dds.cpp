@@ -1,8 +1,10 @@
 #include "transport/dds.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace ladder::transport {
 
@@ -12,6 +14,24 @@ void use_default_config(const std::string& xml) {
 }
 
 namespace {
+
+struct CycloneLog {
+  void (*sink)(const char*) = nullptr;
+  std::string topic;  // whose undecodable samples are counted
+  std::atomic<std::uint64_t> undecodable{0};
+};
+CycloneLog g_cyclone_log;
+
+// Cyclone calls this for its info, warning, error and fatal messages, from its own threads. A sample it cannot
+// deserialize it drops with "deserialization TOPIC/TYPE failed": that is the only trace such a sample leaves.
+void on_cyclone_log(void*, const dds_log_data_t* d) {
+  const std::size_t skip = std::min(d->hdrsize, d->size);
+  std::string line(d->message + skip, d->size - skip);
+  while (!line.empty() && (line.back() == '\n' || line.back() == ' ')) line.pop_back();
+  if (line.find("deserialization " + g_cyclone_log.topic + "/") != std::string::npos)
+    g_cyclone_log.undecodable.fetch_add(1, std::memory_order_relaxed);
+  if (g_cyclone_log.sink != nullptr && !line.empty()) g_cyclone_log.sink(line.c_str());
+}
 
 using MatchedFn = dds_return_t (*)(dds_entity_t, dds_instance_handle_t*, size_t);
 using MatchedDataFn = dds_builtintopic_endpoint_t* (*)(dds_entity_t, dds_instance_handle_t);
@@ -62,6 +82,15 @@ bool reader_matched_in(const Entity& reader, const dds_guid_t& participant) {
   return matched_in(reader.get(), participant, dds_get_matched_publications, dds_get_matched_publication_data);
 }
 
+void route_cyclone_log(void (*sink)(const char*), const char* topic) {
+  g_cyclone_log.sink = sink;
+  g_cyclone_log.topic = topic;
+  dds_set_log_mask(DDS_LC_FATAL | DDS_LC_ERROR | DDS_LC_WARNING);
+  dds_set_log_sink(on_cyclone_log, nullptr);
+}
+
+std::uint64_t undecodable_samples() { return g_cyclone_log.undecodable.load(std::memory_order_relaxed); }
+
 void apply_profile(Qos& qos, Profile p) {
   dds_qos_t* q = qos.get();
   const dds_duration_t block = DDS_MSECS(100);  // longest a reliable write may wait for room (keep-last never does)
@@ -80,9 +109,20 @@ void apply_profile(Qos& qos, Profile p) {
       dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
       break;
     case Profile::Command:
-    case Profile::CommandAck:
+      // Every command counts, so keep-all: a client whose server is slow to take its commands waits (up to 1 s),
+      // rather than losing one. The server takes them as they come (docs/server.md, "Intake").
       dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
       dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+      break;
+    case Profile::CommandAck:
+      // Keep-last, not keep-all: a keep-all writer keeps every sample until each reader has confirmed it and, once
+      // its history is full, blocks the writing thread; one reader that stops confirming (a client suspended with
+      // Ctrl-Z, or one whose resource limits are full) would then hold up every other client's answers and, when the
+      // write timed out, end the server. Cyclone never blocks a keep-last writer: it overwrites the oldest sample of
+      // the instance, confirmed or not, so a reader that falls kAckDepth acks behind loses the oldest ones. The
+      // server's intake keeps any one client well below that (commands.burst).
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, kAckDepth);
       break;
     case Profile::Event:
       dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);

@@ -84,11 +84,20 @@ enum class Profile {
   SceneInfo,   // reliable, transient-local, keep-last 1
   State,       // best-effort, keep-last 1, transient-local (the writer side is reliable for late joiners, see .cpp)
   Command,     // reliable, keep-all
-  CommandAck,  // reliable, keep-all
+  CommandAck,  // reliable, keep-last kAckDepth (a writer that never waits for a reader, see .cpp)
   Event,       // reliable, keep-last 64
   Stats,       // best-effort, keep-last 1
 };
 void apply_profile(Qos& q, Profile p);
+// How many acknowledgements the server's writer keeps for readers that have not confirmed them yet. A reader further
+// behind than this loses the oldest (it was not taking them); a server's commands.burst stays below it.
+inline constexpr std::int32_t kAckDepth = 4096;
+
+// Routes Cyclone's own warnings and errors (which it would print to stderr) to `sink`, and counts the samples of
+// `topic` that Cyclone could not deserialize (and so never delivered): a hostile or mismatched writer's. The sink
+// may be called from any of Cyclone's threads. Process-wide; call before the first entity is created.
+void route_cyclone_log(void (*sink)(const char* message), const char* topic);
+std::uint64_t undecodable_samples();
 
 Entity make_participant(dds_domainid_t domain);
 Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name);
@@ -114,6 +123,8 @@ class Writer {
     e_ = Entity(check(dds_create_writer(participant.get(), topic.get(), q.get(), nullptr), "create writer"));
   }
   void write(const T& sample) const { check(dds_write(e_.get(), &sample), "write"); }
+  // The same, returning dds_write's code instead of throwing: for a server, whose writes must not end it.
+  dds_return_t try_write(const T& sample) const { return dds_write(e_.get(), &sample); }
   // Readers matched now.
   std::uint32_t matched() const {
     dds_publication_matched_status_t st{};

@@ -12,11 +12,13 @@
 
 #include <sys/stat.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <thread>
 
 namespace ladder::test {
 namespace {
@@ -318,6 +320,43 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here'"), std::string::npos) << r.output;
   EXPECT_EQ(shell(kViewer + " --size 12").code, 2);
   EXPECT_EQ(shell(kViewer + " --at 1").code, 2);  // --at needs --png
+}
+
+// Another participant publishing a SceneInfo of another generation under the server's sim id, again and again (so
+// that it is always the latest the viewer has): no State can be drawn with it. --png and --ascii give up at their
+// --timeout with code 3 and say why, although the server's States and Stats keep coming. (They used to wait for
+// ever: the server was never quiet.)
+TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
+  const client::SceneInfo info = *client_->wait_scene_info(kAnswer);
+  const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain_));
+  const transport::Topics topics(participant);
+  const transport::Writer<ladder_msg_SceneInfo> scene_w(participant, topics.scene_info, transport::Profile::SceneInfo);
+  std::atomic<bool> stop{false};
+  std::thread forger([&] {
+    ladder_msg_SceneInfo m{};
+    transport::copy_text(m.sim_id, sim_id_);
+    m.generation = info.generation + 1000;
+    m.blocks = info.blocks;
+    transport::lend(m.masses, info.masses);
+    while (!stop) {
+      scene_w.write(m);
+      std::this_thread::sleep_for(Millis(5));
+    }
+  });
+  for (const std::string mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const Result r = shell(kViewer + where() + " --timeout 2 " + mode);
+    const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(r.code, 3) << mode << ": " << r.output;
+    EXPECT_NE(r.output.find("nothing to draw from ladderd '" + sim_id_ + "' in 2 s: the States are of scene "
+                            "generation " + std::to_string(info.generation) + " but the SceneInfo of generation " +
+                            std::to_string(info.generation + 1000)),
+              std::string::npos)
+        << mode << ": " << r.output;
+    EXPECT_LT(took, 20) << mode << " waited " << took << " s with --timeout 2";
+  }
+  stop = true;
+  forger.join();
 }
 
 // An X server of our own for the window; the screen is an XWD file we can read at any time.

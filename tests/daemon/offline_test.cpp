@@ -161,6 +161,8 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[server]\ndomain = \"zero\"\n", ":2:10: server.domain must be an integer"},
                         Case{"[commands]\nqueue = 0\n", ":2:9: commands.queue must be from 1 to 1000000"},
                         Case{"[commands]\nreader_wait = -1\n", ":2:15: commands.reader_wait must be from 0"},
+                        Case{"[commands]\nrate = 0\n", ":2:8: commands.rate must be > 0 and at most 1000000"},
+                        Case{"[commands]\nburst = 4096\n", ":2:9: commands.burst must be from 1 to 2048"},
                         Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
                         Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
