@@ -268,6 +268,8 @@ class Physics {
         tick_log_(!shared.config.tick_log.empty()) {
     session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
     scene_generation_ = session_.generation();
+    accepted_ = session_.taken_before().accepted;  // a resumed session numbers on from its log
+    refused_ = session_.taken_before().refused;
   }
 
   void run(const std::atomic<bool>& stop);
@@ -969,6 +971,12 @@ void Io::write_outbox() {
     copy_text(m.options, s.options);
     written(scene_w_.try_write(m), "ladder/SceneInfo");
   }
+  // A command is in the log, flushed to the file, before its ack goes out: an acknowledged command survives a
+  // kill -9 (--resume replays it).
+  if (log_) record_outbox();
+  if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)) && log_->failed_syncs() == 1)
+    spdlog::error("session log {}: writing it failed or took over 5 s; until it catches up, commands are "
+                  "acknowledged before they are in it (said once)", log_->path());
   for (const AckOut& a : out_.acks) {
     written(ack_w_.try_write(a.ack), "ladder/CommandAck");
     remember(a);
@@ -986,7 +994,6 @@ void Io::write_outbox() {
   }
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) written(stats_w_.try_write(s), "ladder/Stats");
-  if (log_) record_outbox();
   if (tick_log_) write_ticks();
   out_.ticks.clear();
   out_.commands.clear();

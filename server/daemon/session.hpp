@@ -92,6 +92,13 @@ class Session {
   // FNV-1a over the bits of the complete dynamic state: every body's position, angle and velocities, the time,
   // the user forces, the hinges and the grips. Equal hashes mean (up to a 2^-64 chance) identical states.
   std::uint64_t state_hash() const;
+  // Commands taken before this server (a resumed log's), accepted and refused: the server numbers its commands on
+  // from them, so that command_seq and State.commands_applied go on where the log left off.
+  struct Taken {
+    std::uint64_t accepted = 0, refused = 0;
+  };
+  const Taken& taken_before() const { return taken_before_; }
+  void set_taken_before(Taken t) { taken_before_ = t; }
 
  private:
   Outcome set_param(const std::string& setting);
@@ -109,6 +116,7 @@ class Session {
   bool paused_ = false;
   std::uint64_t pending_steps_ = 0;
   std::uint32_t generation_ = 0;
+  Taken taken_before_;
 };
 
 // The command kind's name as users type it ("tip", "break", "set", ...).
