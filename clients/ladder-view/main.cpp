@@ -1,6 +1,7 @@
 // ladder-view: the viewer of ladderd. A window by default (SDL2); --png FILE writes one snapshot, --ascii draws in
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
+#include "transport/version.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -34,6 +35,7 @@ int main(int argc, char** argv) {
   Options o;
   std::string size, view;
   CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
+  app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
   app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")

@@ -6,6 +6,7 @@
 #include "daemon/startup.hpp"
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
+#include "transport/version.hpp"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -19,13 +20,14 @@ int main(int argc, char** argv) {
   CLI::App app{"ladderd: the virtual Jacob's ladder simulation server (real time over DDS, or --offline)"};
   daemon::OfflineOptions o;
   daemon::DaemonConfig c;
-  c.server.scenes_dir = LADDER_SCENES_DIR;
+  c.server.scenes_dir = daemon::default_scenes_dir(LADDER_INSTALLED_SCENES, LADDER_SCENES_DIR);
   std::string config_file, resimulate, resume;
   bool offline = false, quiet = false, keys = false;
   app.add_option("--config", config_file, "configuration file (TOML), e.g. config/ladderd.toml")
       ->check(CLI::ExistingFile);
-  app.add_option("--scene", o.scene, "scene file (TOML); default: the built-in classic toy at rest")
-      ->check(CLI::ExistingFile);
+  app.add_option("--scene", o.scene,
+                 "scene file (TOML), or the name of one in the scenes folder (e.g. double-ripple); default: the "
+                 "built-in classic toy at rest");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
   auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-232)")->check(CLI::Range(0, 232));
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
@@ -56,7 +58,7 @@ int main(int argc, char** argv) {
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");
   app.add_flag("--quiet", quiet, "no progress lines (offline)");
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
-  app.set_version_flag("--version", "ladderd 0.3.0");
+  app.set_version_flag("--version", std::string("ladderd ") + kVersion);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -81,7 +83,7 @@ int main(int argc, char** argv) {
     if (spin->count()) c.server.spin_us = cli.server.spin_us;
     if (level->count()) c.log_level = cli.log_level;
     if (log_file->count()) c.log_file = cli.log_file;
-    if (!o.scene.empty()) c.scene = o.scene;
+    if (!o.scene.empty()) c.scene = daemon::find_scene(o.scene, c.server.scenes_dir);
     daemon::check_config(c);
     daemon::setup_logging(c);
   } catch (const std::exception& e) {

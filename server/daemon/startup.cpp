@@ -7,8 +7,13 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <csignal>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 
 namespace ladder::daemon {
@@ -21,11 +26,27 @@ extern "C" void on_signal(int sig) {
   g_signal = sig;
   if (g_stop) g_stop->store(true);  // lock-free atomic: async-signal-safe
 }
+
+// Whether standard error is the journal's stream: systemd sets JOURNAL_STREAM to its device and inode.
+bool to_journal() {
+  const char* stream = std::getenv("JOURNAL_STREAM");
+  struct stat st {};
+  if (stream == nullptr || fstat(STDERR_FILENO, &st) != 0) return false;
+  return std::string(stream) == std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+}
 }  // namespace
 
 void setup_logging(const DaemonConfig& config) {
   std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
   if (!config.log_file.empty()) {
+    // spdlog's file sink makes the missing folders on its way: a typo in the path would log to a new tree nobody
+    // looks at. The folder must exist.
+    namespace fs = std::filesystem;
+    const fs::path parent = fs::path(config.log_file).parent_path();
+    std::error_code ec;
+    if (!parent.empty() && !fs::is_directory(parent, ec))
+      throw std::runtime_error("cannot open the log file '" + config.log_file + "': its folder '" + parent.string() +
+                               "' does not exist");
     try {
       sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(config.log_file));
     } catch (const spdlog::spdlog_ex& e) {
@@ -35,8 +56,35 @@ void setup_logging(const DaemonConfig& config) {
   auto logger = std::make_shared<spdlog::logger>("ladderd", sinks.begin(), sinks.end());
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(config.log_level));
-  spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^[%l]%$ %v");
+  // Under systemd the journal stamps each line itself: no second timestamp, no colour codes.
+  spdlog::set_pattern(to_journal() ? "[%l] %v" : "%Y-%m-%d %H:%M:%S.%e %^[%l]%$ %v");
   spdlog::flush_on(spdlog::level::info);
+}
+
+std::string default_scenes_dir(const std::string& installed, const std::string& source_tree) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path beside = exe.parent_path().parent_path() / installed;
+    if (fs::is_directory(beside, ec)) return beside.lexically_normal().string();
+  }
+  return source_tree;
+}
+
+std::string find_scene(const std::string& scene, const std::string& scenes_dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_regular_file(scene, ec)) return scene;
+  if (scene.find('/') != std::string::npos || scene.starts_with("."))
+    throw std::runtime_error("--scene " + scene + ": no such file");
+  const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
+  if (fs::is_regular_file(named, ec)) return named.string();
+  std::string available;
+  for (const auto& entry : fs::directory_iterator(scenes_dir, ec))
+    if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
+  throw std::runtime_error("--scene " + scene + ": no such file, and no scene of that name in " + scenes_dir +
+                           " (" + (available.empty() ? "none there" : "there: " + available) + ")");
 }
 
 scene::Scene first_scene(const DaemonConfig& config, const std::vector<std::string>& overrides) {

@@ -18,6 +18,12 @@ void setup_logging(const DaemonConfig& config);
 
 // The scene file named in the configuration, or the built-in classic toy at rest (its timeline removed), with
 // the --set overrides. Throws scene::SceneError.
+// Where `load NAME` and `--scene NAME` look: PREFIX/`installed` when this ladderd runs from PREFIX/bin and that
+// folder is there (an installed ladderd, run from anywhere), else `source_tree` (a build tree).
+std::string default_scenes_dir(const std::string& installed, const std::string& source_tree);
+// --scene's file: the path itself if it is a file, else the scene of that name in scenes_dir; throws naming both
+// and listing the scenes there.
+std::string find_scene(const std::string& scene, const std::string& scenes_dir);
 scene::Scene first_scene(const DaemonConfig& config, const std::vector<std::string>& overrides);
 std::unique_ptr<Session> first_session(const DaemonConfig& config, const std::vector<std::string>& overrides);
 
