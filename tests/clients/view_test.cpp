@@ -1,6 +1,7 @@
 // ladder-view: the drawing module on its own, then the real binary against a real ladderd over Cyclone DDS:
 // PNG snapshots checked pixel by pixel against the state, the terminal rendering, the window under Xvfb with a
 // synthetic click (xdotool) that the server must accept, and a viewer in another network namespace.
+#include "naming.hpp"
 #include "ascii.hpp"
 #include "client.hpp"
 #include "draw.hpp"
@@ -36,11 +37,6 @@ constexpr Millis kStart{15000};  // generous: CI runs two tests at once on two c
 constexpr Millis kAnswer{5000};
 const std::string kBin = LADDER_BINARY_DIR;
 const std::string kViewer = kBin + "/clients/ladder-view";
-
-std::string test_name() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  return std::string(info->test_suite_name()) + "." + info->name();
-}
 
 // Polls `done` until it holds or the deadline passes.
 bool eventually(const std::function<bool()>& done, Millis timeout) {
@@ -222,10 +218,8 @@ class View : public ::testing::Test {
  protected:
   void SetUp() override {
     const std::string name = test_name();
-    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
-    for (char& ch : sim_id_)
-      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
-    domain_ = 1 + static_cast<int>(std::hash<std::string>{}(name) % 230);
+    sim_id_ = sim_id_for(name);
+    domain_ = domain_for(name);
     log_path_ = kBin + "/tests/" + name + ".log";
     out_ = kBin + "/tests/" + name;
     server_.emplace(std::vector<std::string>{kBin + "/server/ladderd", "--domain", std::to_string(domain_),

@@ -2,6 +2,7 @@
 // set to NaN, infinities, 1e300, -0, denormals and out-of-range indices and counts, and every live key with extreme
 // values. Meanwhile a second participant reads every State, Stats, Event and SceneInfo the server publishes and
 // checks every number in them. Afterwards the server must still publish at its rate and the ladder still move.
+#include "naming.hpp"
 #include "client.hpp"
 #include "process.hpp"
 
@@ -30,13 +31,6 @@ using Clock = std::chrono::steady_clock;
 
 constexpr Millis kStart{15000};  // generous: CI runs two tests at once on two cores
 constexpr Millis kAnswer{10000};
-
-std::string test_name() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  return std::string(info->test_suite_name()) + "." + info->name();
-}
-
-int domain_for(const std::string& name) { return 1 + static_cast<int>(std::hash<std::string>{}(name) % 230); }
 
 // Reads everything the server publishes, on a participant of its own, and counts every number that is not finite.
 class Scanner {
@@ -170,10 +164,7 @@ class Hostile : public ::testing::Test {
  protected:
   void start() {
     const std::string name = test_name();
-    // (sim ids are at most 64 characters: the last 40 of the test's name, and the pid for a rerun)
-    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
-    for (char& ch : sim_id_)
-      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
+    sim_id_ = sim_id_for(name);
     domain_ = domain_for(name);
     log_path_ = std::string(LADDER_BINARY_DIR) + "/tests/" + name + ".log";
     server_.emplace(std::vector<std::string>{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",

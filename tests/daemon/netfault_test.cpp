@@ -3,6 +3,7 @@
 // tests/net/drop.c; this kernel has no netem), and on loopback for duplicate command ids and server restarts.
 // The namespace tests need root; they skip, saying why, when not root or when the kernel refuses a namespace, a
 // veth pair or the classifier (tests/daemon/netns.hpp).
+#include "naming.hpp"
 #include "client.hpp"
 #include "netns.hpp"
 #include "process.hpp"
@@ -33,11 +34,6 @@ constexpr Millis kAnswer{5000};
 constexpr Millis kLossy{60000};   // one command's answer, or discovery, with 20 % loss each way
 const std::string kLadderd = std::string(LADDER_BINARY_DIR) + "/server/ladderd";
 const std::string kBpfDir = LADDER_BPF_DIR;  // drop20.o, drop100.o; empty when CMake found no clang
-
-std::string test_name() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  return std::string(info->test_suite_name()) + "." + info->name();
-}
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
@@ -71,11 +67,8 @@ class NetFault : public ::testing::Test {
  protected:
   void SetUp() override {
     const std::string name = test_name();
-    // The pid makes a rerun's server distinct from a killed one that discovery still lists (until its lease ends).
-    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
-    for (char& ch : sim_id_)
-      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
-    domain_ = 1 + static_cast<int>(std::hash<std::string>{}(name) % 230);
+    sim_id_ = sim_id_for(name);
+    domain_ = domain_for(name);
     log_ = std::string(LADDER_BINARY_DIR) + "/tests/" + name;
   }
   std::vector<std::string> ladderd_args() const {

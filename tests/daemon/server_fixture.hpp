@@ -2,6 +2,7 @@
 // and the same client library ladderctl uses.
 #pragma once
 
+#include "naming.hpp"
 #include "client.hpp"
 #include "process.hpp"
 
@@ -30,22 +31,11 @@ using Clock = std::chrono::steady_clock;
 inline constexpr Millis kStart{15000};  // generous: CI runs two tests at once on two cores
 inline constexpr Millis kAnswer{5000};
 
-inline std::string test_name() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  return std::string(info->test_suite_name()) + "." + info->name();
-}
-
-inline int domain_for(const std::string& name) { return 1 + static_cast<int>(std::hash<std::string>{}(name) % 230); }
-
 class Server : public ::testing::Test {
  protected:
   void start(std::vector<std::string> extra = {}) {
     const std::string name = test_name();
-    // The pid makes a rerun's server distinct from a killed one that discovery still lists (until its lease ends).
-    // (sim ids are at most 64 characters, so a short name: the last 40 characters of the test's)
-    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
-    for (char& ch : sim_id_)
-      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
+    sim_id_ = sim_id_for(name);
     domain_ = domain_for(name);
     log_path_ = std::string(LADDER_BINARY_DIR) + "/tests/" + name + ".log";
     std::vector<std::string> args{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
