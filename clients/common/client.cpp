@@ -177,8 +177,10 @@ bool Client::from_server(const transport::Entity& reader, dds_instance_handle_t 
   return o && *o == key_of(*server_);
 }
 
-// The server is the participant of the first State's writer. Another participant's States are taken only once the
-// server's writer is gone (a restarted server has a new participant); while it is matched they are forgeries.
+// The server is the participant of a State's writer that connected() has confirmed: it also reads our commands and
+// writes acks and events to us. Until then the latest State's writer is the candidate (so that a participant that
+// only publishes States cannot keep us from finding the server). Once confirmed, another participant's States are
+// taken only when the server's writer is gone (a restarted server has a new participant); else they are forgeries.
 void Client::take_states() {
   state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
@@ -191,12 +193,13 @@ void Client::take_states() {
     if (info.publication_handle != server_writer_) {  // the first state, a restarted server's, or a forger's
       if (from_server(state_r_.entity(), info.publication_handle)) {
         server_writer_ = info.publication_handle;  // the same server, another writer
-      } else if (server_ && transport::writer_participant(state_r_.entity(), server_writer_)) {
+      } else if (confirmed_ && transport::writer_participant(state_r_.entity(), server_writer_)) {
         ++forged_;  // our server's writer is still there: this is someone else's
         return;
       } else if (const auto p = transport::writer_participant(state_r_.entity(), info.publication_handle)) {
         server_ = p;
         server_writer_ = info.publication_handle;
+        confirmed_ = false;
         const Key k = key_of(*p);
         if (const auto it = scenes_.find(k); it != scenes_.end()) scene_ = it->second;
         else scene_.reset();  // the previous server's does not describe this one
@@ -307,9 +310,9 @@ bool Client::wait(Millis timeout, const std::function<bool()>& done) {
 
 bool Client::connected() {
   if (!state_ || !scene_) return false;
-  if (scene_->replay) return true;  // a replay (ladderctl replay) publishes but takes no commands
+  if (scene_->replay) return confirmed_ = true;  // a replay (ladderctl replay) publishes but takes no commands
   if (!server_) return false;
-  if (!may_command()) return event_r_.matched_in(*server_);  // a viewer: it only reads
+  if (!may_command()) return confirmed_ = event_r_.matched_in(*server_);  // a viewer: it only reads
   // The lookups copy every matched endpoint's data: the answer is kept while the server and the count stay.
   const std::uint32_t readers = command_w_.matched();
   if (connected_writer_ == server_writer_ && connected_readers_ == readers) return true;
@@ -317,6 +320,7 @@ bool Client::connected() {
     return false;
   connected_writer_ = server_writer_;
   connected_readers_ = readers;
+  confirmed_ = true;
   return true;
 }
 

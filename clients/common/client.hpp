@@ -174,6 +174,7 @@ class Client {
   // The participant of the writer of our latest State (the server's), and that writer.
   std::optional<dds_guid_t> server_;
   dds_instance_handle_t server_writer_ = 0;
+  bool confirmed_ = false;  // connected() found server_ to be a server (see take_states)
   // connected() said yes for this server's writer while the command writer had this many readers.
   dds_instance_handle_t connected_writer_ = 0;
   std::uint32_t connected_readers_ = 0;
