@@ -148,7 +148,8 @@ TEST_F(Security, AParticipantWithNoIdentitySeesNoServerAndReachesNoOne) {
   EXPECT_NE(r.output.find("no ladderd with sim id '" + sim_id_ + "'"), std::string::npos) << r.output;
   // An unauthenticated participant that writes commands and States anyway: none reaches anyone.
   const Result peer = shell("LADDER_UNSECURED_PEER='" + std::to_string(domain_) + " " + sim_id_ + "' " +
-                            fs::read_symlink("/proc/self/exe").string() + " --gtest_filter=SecurityHelper.UnsecuredPeer");
+                            fs::read_symlink("/proc/self/exe").string() +
+                            " --gtest_filter=SecurityHelper.UnsecuredPeer");
   EXPECT_EQ(peer.code, 0) << peer.output;
   EXPECT_NE(peer.output.find("command writer matched 0 readers, state writer 0"), std::string::npos) << peer.output;
   EXPECT_EQ(commands_received(), 0u);
@@ -232,10 +233,10 @@ TEST_F(Security, EveryWayTheFilesCanBeWrongIsNamed) {
 }
 
 // Without security: a participant that reads every command and answers each with 100 forged refusals, and
-// publishes States of its own under the server's sim id, before the server does.
+// publishes States of its own under the server's sim id.
 struct Forger {
-  Forger(int domain, std::string sim_id)
-      : sim_id(std::move(sim_id)),
+  Forger(int domain, std::string id)
+      : sim_id(std::move(id)),
         participant(transport::make_participant(static_cast<dds_domainid_t>(domain))),
         topics(participant),
         command_r(participant, topics.command, transport::Profile::Command),
@@ -298,7 +299,8 @@ TEST_F(Security, WithoutSecurityAForgedAckIsNeverTaken) {
     ASSERT_EQ(a.reason, "") << "command " << k << ": took a forged answer";
     ASSERT_TRUE(a.accepted);
   }
-  const auto st = client_->wait_state([](const client::State& s) { return s.step == Forger::kForgedStep; }, Millis(500));
+  const auto st =
+      client_->wait_state([](const client::State& s) { return s.step == Forger::kForgedStep; }, Millis(500));
   EXPECT_FALSE(st.has_value()) << "took a forged State";
   EXPECT_GT(client_->forged(), 100u * 100u / 2) << "the forger's acks did not arrive: the race was not run";
   for (int k = 0; k < 10; ++k) {
