@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace ladder::client {
@@ -139,7 +140,7 @@ T if_topic(const transport::Entity& participant, const transport::Entity& topic,
   return topic ? T(participant, topic, p) : T();
 }
 
-constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096;
+constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096, kMaxCandidates = 8;
 
 }  // namespace
 
@@ -201,6 +202,11 @@ void Client::take_states() {
         server_writer_ = info.publication_handle;
         confirmed_ = false;
         const Key k = key_of(*p);
+        const auto seen = std::find_if(candidates_.begin(), candidates_.end(),
+                                       [&](const auto& c) { return key_of(c.first) == k; });
+        if (seen != candidates_.end()) candidates_.erase(seen);
+        if (candidates_.size() >= kMaxCandidates) candidates_.erase(candidates_.begin());
+        candidates_.emplace_back(*p, info.publication_handle);
         if (const auto it = scenes_.find(k); it != scenes_.end()) scene_ = it->second;
         else scene_.reset();  // the previous server's does not describe this one
         for (auto& [who, e] : early_events_)
@@ -308,11 +314,34 @@ bool Client::wait(Millis timeout, const std::function<bool()>& done) {
   }
 }
 
+bool Client::serves_us(const dds_guid_t& p) {
+  const auto scene = scenes_.find(key_of(p));
+  if (scene == scenes_.end()) return false;
+  if (scene->second.replay) return true;  // a replay (ladderctl replay) publishes but takes no commands
+  if (!may_command()) return event_r_.matched_in(p);  // a viewer: it only reads
+  return command_w_.matched_in(p) && ack_r_.matched_in(p) && event_r_.matched_in(p);
+}
+
 bool Client::connected() {
+  if (!confirmed_) {
+    // Every participant that sent States since the last confirmation, the latest first: the first that serves us
+    // is the server. (Only the latest State's writer would do, but a participant publishing States faster than the
+    // server would then hide it most of the time.)
+    for (auto c = candidates_.rbegin(); c != candidates_.rend() && !confirmed_; ++c) {
+      if (!serves_us(c->first)) continue;
+      if (!server_ || key_of(*server_) != key_of(c->first)) {
+        server_ = c->first;
+        server_writer_ = c->second;
+        state_.reset();  // another participant's: wait for the server's own
+        scene_ = scenes_.at(key_of(c->first));
+      }
+      confirmed_ = true;
+    }
+    if (!confirmed_) return false;
+    candidates_.clear();
+  }
   if (!state_ || !scene_) return false;
-  if (scene_->replay) return confirmed_ = true;  // a replay (ladderctl replay) publishes but takes no commands
-  if (!server_) return false;
-  if (!may_command()) return confirmed_ = event_r_.matched_in(*server_);  // a viewer: it only reads
+  if (scene_->replay || !may_command()) return true;
   // The lookups copy every matched endpoint's data: the answer is kept while the server and the count stay.
   const std::uint32_t readers = command_w_.matched();
   if (connected_writer_ == server_writer_ && connected_readers_ == readers) return true;
@@ -320,7 +349,6 @@ bool Client::connected() {
     return false;
   connected_writer_ = server_writer_;
   connected_readers_ = readers;
-  confirmed_ = true;
   return true;
 }
 

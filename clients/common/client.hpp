@@ -154,6 +154,7 @@ class Client {
   void take_states();
   bool wait(Millis timeout, const std::function<bool()>& done);
   bool connected();
+  bool serves_us(const dds_guid_t& participant);  // it sent a SceneInfo and reads our commands and answers us
 
   std::string sim_id_, client_id_;
   std::string denied_;  // declared before topics_, whose initialisation (topics_for) sets it
@@ -175,6 +176,8 @@ class Client {
   std::optional<dds_guid_t> server_;
   dds_instance_handle_t server_writer_ = 0;
   bool confirmed_ = false;  // connected() found server_ to be a server (see take_states)
+  // Until then, the participants (and their State writers) that may be the server, the latest last.
+  std::vector<std::pair<dds_guid_t, dds_instance_handle_t>> candidates_;
   // connected() said yes for this server's writer while the command writer had this many readers.
   dds_instance_handle_t connected_writer_ = 0;
   std::uint32_t connected_readers_ = 0;
