@@ -303,12 +303,22 @@ TEST_F(Security, WithoutSecurityAForgedAckIsNeverTaken) {
       client_->wait_state([](const client::State& s) { return s.step == Forger::kForgedStep; }, Millis(500));
   EXPECT_FALSE(st.has_value()) << "took a forged State";
   EXPECT_GT(client_->forged(), 100u * 100u / 2) << "the forger's acks did not arrive: the race was not run";
+  // ladderctl: never a forged answer (exit 1 or its text). Now and then (2 runs in about 50 here) a ladderctl under
+  // this flood finds no server within its timeout (exit 3; the forger's participant was then the only one it had
+  // seen): counted and allowed, as long as most runs get the server's answer.
+  int answered = 0;
   for (int k = 0; k < 10; ++k) {
-    const Result r = ctl("step 1");
-    EXPECT_EQ(r.code, 0) << r.output;
+    const auto t0 = Clock::now();
+    const Result r = ctl("step 1", 10);
+    std::printf("ladderctl run %d: exit %d after %.2f s\n", k, r.code,
+                std::chrono::duration<double>(Clock::now() - t0).count());
     EXPECT_EQ(r.output.find("FORGED"), std::string::npos) << "ladderctl printed a forged ack: " << r.output;
+    EXPECT_TRUE(r.code == 0 || r.code == 3) << r.output;
+    if (r.code != 0) continue;
     EXPECT_NE(r.output.find("accepted at t = "), std::string::npos) << r.output;
+    ++answered;
   }
+  EXPECT_GE(answered, 8) << "ladderctl found the server in only " << answered << " of 10 runs";
   std::printf("forged acks written: %llu, ignored by the test's client: %llu\n",
               static_cast<unsigned long long>(forger.acks.load()),
               static_cast<unsigned long long>(client_->forged()));
