@@ -167,7 +167,31 @@ std::vector<Delivery> subscribers_run(int subs, bool same_process, int domain, c
 
 }  // namespace
 
+// --security: the identities this run makes (scripts/make-pki) and uses; the bench and its subscriber processes (which
+// inherit the variable) all use the controller's (Cyclone wants one security setting per domain in a process).
+constexpr const char* kSecurityEnv = "LADDER_BENCH_SECURITY";
+std::optional<ladder::transport::Identity> g_identity;
+
+void use_security_of_env() {
+  const char* dir = std::getenv(kSecurityEnv);
+  if (dir == nullptr) return;
+  g_identity = ladder::transport::load_identity(dir);
+  ladder::transport::set_default_identity(&*g_identity);
+}
+
+// Makes a server and a controller identity in a folder of its own; returns the folder.
+std::string make_pki() {
+  const std::string dir = "/tmp/ladder-bench-pki-" + std::to_string(getpid());
+  const std::string cmd = std::string(LADDER_SOURCE_DIR) + "/scripts/make-pki " + dir +
+                          " --server server --controller control > /dev/null";
+  if (std::system(cmd.c_str()) != 0) throw std::runtime_error("scripts/make-pki failed: " + cmd);
+  setenv(kSecurityEnv, (dir + "/control").c_str(), 1);
+  use_security_of_env();
+  return dir;
+}
+
 int main(int argc, char** argv) {
+  use_security_of_env();
   // A subscriber process started by subscribers_run(): --subscriber DOMAIN SIM_ID SECONDS OUT_FILE.
   if (argc == 6 && std::string(argv[1]) == "--subscriber") {
     write_delivery(subscribe(std::atoi(argv[2]), argv[3], std::atof(argv[4])), argv[5]);
@@ -193,7 +217,11 @@ int main(int argc, char** argv) {
   bool processes = false;
   app.add_flag("--subscriber-processes", processes,
                "run each subscriber as a process of its own (as separate viewers) instead of a thread of this one");
+  bool security = false;
+  app.add_flag("--security", security,
+               "DDS Security (docs/security.md): identities made with scripts/make-pki for ladderd and the clients");
   CLI11_PARSE(app, argc, argv);
+  const std::string pki = security ? make_pki() : "";
 
   // Tick lateness and step time come from the server's tick log: every tick that started while the subscribers ran
   // and commands were sent. The p99 of the server's own Stats is also given per 1 s window (median and worst window)
@@ -213,6 +241,7 @@ int main(int argc, char** argv) {
       if (spin_us > 0) args.insert(args.end(), {"--spin-us", std::to_string(spin_us)});
       const std::string tick_log = "/tmp/" + sim_id + "-" + std::to_string(getpid()) + ".ticks";
       args.insert(args.end(), {"--tick-log", tick_log});
+      if (security) args.insert(args.end(), {"--security", pki + "/server"});
       ladder::test::Process server(args, "/tmp/" + sim_id + ".log");
       Client control(domain, sim_id, "control");
       if (!control.wait_for_server(Millis(60000))) {

@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace ladder::client {
@@ -119,16 +120,40 @@ std::string default_client_id() {
   gethostname(host, sizeof host - 1);
   return std::string(host) + "-" + std::to_string(getpid());
 }
+
+// The topics of a participant; when DDS Security does not let it publish commands (a viewer: its permissions grant
+// neither ladder/Command nor ladder/CommandAck, and Cyclone refuses even to create those topics), the topics
+// without those two, and `denied` says so.
+transport::Topics topics_for(const transport::Entity& participant, std::string& denied) {
+  try {
+    return transport::Topics(participant);
+  } catch (const transport::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    denied = "permission denied: this identity's DDS Security permissions do not allow publishing ladder/Command "
+             "(a viewer's; commands need a controller identity)";
+    return transport::Topics(participant, false);
+  }
+}
+
+template <class T>
+T if_topic(const transport::Entity& participant, const transport::Entity& topic, transport::Profile p) {
+  return topic ? T(participant, topic, p) : T();
+}
+
+constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096, kMaxCandidates = 8;
+
 }  // namespace
 
-Client::Client(int domain, std::string sim_id, std::string client_id)
+Client::Client(int domain, std::string sim_id, std::string client_id, const transport::Identity* identity)
     : sim_id_(std::move(sim_id)),
       client_id_(client_id.empty() ? default_client_id() : std::move(client_id)),
       participant_((transport::use_default_config(transport::kDefaultCycloneConfig),
-                    transport::make_participant(static_cast<dds_domainid_t>(domain)))),
-      topics_(participant_),
-      command_w_(participant_, topics_.command, transport::Profile::Command),
-      ack_r_(participant_, topics_.ack, transport::Profile::CommandAck),
+                    transport::make_participant(static_cast<dds_domainid_t>(domain), identity))),
+      topics_(topics_for(participant_, denied_)),
+      command_w_(if_topic<transport::Writer<ladder_msg_Command>>(participant_, topics_.command,
+                                                                  transport::Profile::Command)),
+      ack_r_(if_topic<transport::Reader<ladder_msg_CommandAck>>(participant_, topics_.ack,
+                                                                 transport::Profile::CommandAck)),
       state_r_(participant_, topics_.state, transport::Profile::State),
       scene_r_(participant_, topics_.scene_info, transport::Profile::SceneInfo),
       event_r_(participant_, topics_.event, transport::Profile::Event),
@@ -136,15 +161,28 @@ Client::Client(int domain, std::string sim_id, std::string client_id)
       waiter_(participant_) {
   for (const transport::Entity* r : {&ack_r_.entity(), &state_r_.entity(), &scene_r_.entity(), &event_r_.entity(),
                                      &stats_r_.entity()})
-    waiter_.attach(*r);
+    if (*r) waiter_.attach(*r);
 }
 
-void Client::poll() {
-  ack_r_.take([&](const ladder_msg_CommandAck& a, const dds_sample_info_t&) {
-    if (text_of(a.sim_id) != sim_id_ || text_of(a.client_id) != client_id_) return;
-    acks_[a.command_id] = {a.command_id, a.accepted, text_of(a.reason), a.sim_time, a.step, a.command_seq};
-    ++acks_received_;
-  });
+std::optional<Client::Key> Client::owner(const transport::Entity& reader, dds_instance_handle_t writer) {
+  if (const auto it = owners_.find(writer); it != owners_.end()) return it->second;
+  const auto p = transport::writer_participant(reader, writer);
+  if (!p) return std::nullopt;
+  if (owners_.size() >= kMaxOwners) owners_.clear();  // many short-lived writers: start again
+  return owners_.emplace(writer, key_of(*p)).first->second;
+}
+
+bool Client::from_server(const transport::Entity& reader, dds_instance_handle_t writer) {
+  if (!server_) return false;
+  const auto o = owner(reader, writer);
+  return o && *o == key_of(*server_);
+}
+
+// The server is the participant of a State's writer that connected() has confirmed: it also reads our commands and
+// writes acks and events to us. Until then the latest State's writer is the candidate (so that a participant that
+// only publishes States cannot keep us from finding the server). Once confirmed, another participant's States are
+// taken only when the server's writer is gone (a restarted server has a new participant); else they are forgeries.
+void Client::take_states() {
   state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
     // One pose (three numbers) and one hinge per block; a state whose sequences disagree is not drawable.
@@ -153,10 +191,29 @@ void Client::poll() {
       ++states_malformed_;
       return;
     }
-    if (info.publication_handle != server_writer_) {  // the first state, or a restarted server's
-      if (const auto p = transport::writer_participant(state_r_.entity(), info.publication_handle)) {
+    if (info.publication_handle != server_writer_) {  // the first state, a restarted server's, or a forger's
+      if (from_server(state_r_.entity(), info.publication_handle)) {
+        server_writer_ = info.publication_handle;  // the same server, another writer
+      } else if (confirmed_ && transport::writer_participant(state_r_.entity(), server_writer_)) {
+        ++forged_;  // our server's writer is still there: this is someone else's
+        return;
+      } else if (const auto p = transport::writer_participant(state_r_.entity(), info.publication_handle)) {
         server_ = p;
         server_writer_ = info.publication_handle;
+        confirmed_ = false;
+        const Key k = key_of(*p);
+        const auto seen = std::find_if(candidates_.begin(), candidates_.end(),
+                                       [&](const auto& c) { return key_of(c.first) == k; });
+        if (seen != candidates_.end()) candidates_.erase(seen);
+        if (candidates_.size() >= kMaxCandidates) candidates_.erase(candidates_.begin());
+        candidates_.emplace_back(*p, info.publication_handle);
+        if (const auto it = scenes_.find(k); it != scenes_.end()) scene_ = it->second;
+        else scene_.reset();  // the previous server's does not describe this one
+        for (auto& [who, e] : early_events_)
+          if (who == k) events_.push_back(std::move(e));
+        early_events_.clear();
+      } else {
+        return;  // its writer is gone already
       }
     }
     State& st = state_ ? *state_ : state_.emplace();  // reuses the vectors' storage
@@ -178,9 +235,31 @@ void Client::poll() {
     st.grips.assign(s.grips._buffer, s.grips._buffer + s.grips._length);
     ++state_count_;
   });
-  scene_r_.take([&](const ladder_msg_SceneInfo& s, const dds_sample_info_t&) {
+}
+
+// Only the server's samples count (from_server); the others are counted in forged_ and dropped, so that another
+// participant on the domain cannot answer our commands or be drawn as our ladder.
+void Client::poll() {
+  take_states();  // first: they say which participant is the server
+  if (ack_r_.entity()) {
+    ack_r_.take([&](const ladder_msg_CommandAck& a, const dds_sample_info_t& info) {
+      if (text_of(a.sim_id) != sim_id_ || text_of(a.client_id) != client_id_) return;
+      if (!from_server(ack_r_.entity(), info.publication_handle)) {
+        ++forged_;
+        return;
+      }
+      acks_[a.command_id] = {a.command_id, a.accepted, text_of(a.reason), a.sim_time, a.step, a.command_seq};
+      ++acks_received_;
+    });
+  }
+  scene_r_.take([&](const ladder_msg_SceneInfo& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
-    SceneInfo& si = scene_.emplace();
+    const auto who = owner(scene_r_.entity(), info.publication_handle);
+    if (!who) return;
+    const bool ours = server_ && *who == key_of(*server_);
+    if (server_ && !ours) ++forged_;  // kept aside all the same: it may be a restarted server's, before its State
+    if (!scenes_.count(*who) && scenes_.size() >= kMaxScenes) scenes_.erase(scenes_.begin());
+    SceneInfo& si = scenes_[*who];
     si.generation = s.generation;
     si.scene_name = text_of(s.scene_name);
     si.description = text_of(s.description);
@@ -197,13 +276,28 @@ void Client::poll() {
     si.publish_rate = s.publish_rate;
     si.real_time_factor = s.real_time_factor;
     si.masses.assign(s.masses._buffer, s.masses._buffer + s.masses._length);
+    if (ours) scene_ = si;
   });
-  event_r_.take([&](const ladder_msg_Event& e, const dds_sample_info_t&) {
+  event_r_.take([&](const ladder_msg_Event& e, const dds_sample_info_t& info) {
     if (text_of(e.sim_id) != sim_id_) return;
-    events_.push_back({e.seq, e.t, text_of(e.kind), e.hinge, e.energy_removed, text_of(e.detail)});
+    Event ev{e.seq, e.t, text_of(e.kind), e.hinge, e.energy_removed, text_of(e.detail)};
+    if (!server_) {  // the event reader can match the server before its first State comes: kept for then
+      const auto who = owner(event_r_.entity(), info.publication_handle);
+      if (who && early_events_.size() < kMaxEarlyEvents) early_events_.emplace_back(*who, std::move(ev));
+      return;
+    }
+    if (!from_server(event_r_.entity(), info.publication_handle)) {
+      ++forged_;
+      return;
+    }
+    events_.push_back(std::move(ev));
   });
-  stats_r_.take([&](const ladder_msg_Stats& s, const dds_sample_info_t&) {
+  stats_r_.take([&](const ladder_msg_Stats& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
+    if (!from_server(stats_r_.entity(), info.publication_handle)) {
+      if (server_) ++forged_;
+      return;
+    }
     stats_ = s;
     ++stats_count_;
   });
@@ -220,10 +314,34 @@ bool Client::wait(Millis timeout, const std::function<bool()>& done) {
   }
 }
 
+bool Client::serves_us(const dds_guid_t& p) {
+  const auto scene = scenes_.find(key_of(p));
+  if (scene == scenes_.end()) return false;
+  if (scene->second.replay) return true;  // a replay (ladderctl replay) publishes but takes no commands
+  if (!may_command()) return event_r_.matched_in(p);  // a viewer: it only reads
+  return command_w_.matched_in(p) && ack_r_.matched_in(p) && event_r_.matched_in(p);
+}
+
 bool Client::connected() {
+  if (!confirmed_) {
+    // Every participant that sent States since the last confirmation, the latest first: the first that serves us
+    // is the server. (Only the latest State's writer would do, but a participant publishing States faster than the
+    // server would then hide it most of the time.)
+    for (auto c = candidates_.rbegin(); c != candidates_.rend() && !confirmed_; ++c) {
+      if (!serves_us(c->first)) continue;
+      if (!server_ || key_of(*server_) != key_of(c->first)) {
+        server_ = c->first;
+        server_writer_ = c->second;
+        state_.reset();  // another participant's: wait for the server's own
+        scene_ = scenes_.at(key_of(c->first));
+      }
+      confirmed_ = true;
+    }
+    if (!confirmed_) return false;
+    candidates_.clear();
+  }
   if (!state_ || !scene_) return false;
-  if (scene_->replay) return true;  // a replay (ladderctl replay) publishes but takes no commands
-  if (!server_) return false;
+  if (scene_->replay || !may_command()) return true;
   // The lookups copy every matched endpoint's data: the answer is kept while the server and the count stay.
   const std::uint32_t readers = command_w_.matched();
   if (connected_writer_ == server_writer_ && connected_readers_ == readers) return true;
@@ -239,6 +357,7 @@ bool Client::wait_for_server(Millis timeout) {
 }
 
 std::uint64_t Client::send(ladder_msg_Command c) {
+  if (!may_command()) throw PermissionDenied(denied_);
   const std::uint64_t id = next_id_++;
   resend(c, id);
   return id;

@@ -4,6 +4,7 @@
 
 #include "ladder.h"
 #include "transport/dds.hpp"
+#include "transport/security.hpp"
 #include "transport/topics.hpp"
 
 #include <chrono>
@@ -11,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -92,22 +94,33 @@ ladder_msg_Command set(const std::string& key_value);
 ladder_msg_Command load(const std::string& scene);
 }  // namespace cmd
 
+// A command this client's DDS Security permissions do not allow (a viewer's): what() names the permission.
+class PermissionDenied : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class Client {
  public:
-  // client_id: how the server's log and acks name this client; empty = "<host>-<pid>".
-  Client(int domain, std::string sim_id, std::string client_id = {});
+  // client_id: how the server's log and acks name this client; empty = "<host>-<pid>". identity: DDS Security
+  // (docs/security.md); nullptr = the process's default identity (transport::set_default_identity), if any.
+  Client(int domain, std::string sim_id, std::string client_id = {}, const transport::Identity* identity = nullptr);
 
   // Waits until the server of our sim id takes our commands and publishes to us (a replay: publishes to us); false
   // at the timeout. "Takes our commands" means matched with that server's own participant: in a domain that other
   // servers share, a match with theirs would let a first command be lost.
   bool wait_for_server(Millis timeout);
-  // Sends a command (sim id, client id and a fresh command id filled in) and returns its id.
+  // Sends a command (sim id, client id and a fresh command id filled in) and returns its id. Throws
+  // PermissionDenied when this participant may not publish commands (see may_command).
   std::uint64_t send(ladder_msg_Command c);
   // Sends command `id` again (sim id and client id filled in): the resend after no answer, e.g. when a partition
   // longer than the DDS lease lost what was written during it. The server applies a (client id, command id) among
   // the client's last 1024 once and answers a repeat with the first ack (docs/server.md; docs/network.md, "When the
   // network fails").
   void resend(ladder_msg_Command c, std::uint64_t id);
+  // Whether DDS Security lets this participant publish commands; if not, denied() says which permission it lacks.
+  bool may_command() const { return static_cast<bool>(command_w_.entity()); }
+  const std::string& denied() const { return denied_; }
   // The ack of command `id`, waiting up to `timeout`.
   std::optional<Ack> wait_ack(std::uint64_t id, Millis timeout);
   // send + wait_ack; throws std::runtime_error at the timeout.
@@ -132,12 +145,24 @@ class Client {
   // States dropped because their sequences disagree (not one pose and one hinge per block).
   std::uint64_t states_malformed() const { return states_malformed_; }
   const std::string& client_id() const { return client_id_; }
+  // Samples (acks, states, scene infos, events, stats) ignored because their writer is not in the participant of
+  // the server this client found: another program publishing under the server's topics (docs/security.md).
+  std::uint64_t forged() const { return forged_; }
 
  private:
+  using Key = std::string;  // a participant's GUID as bytes
+  static Key key_of(const dds_guid_t& g) { return Key(reinterpret_cast<const char*>(g.v), sizeof g.v); }
+  // The participant of the writer of a sample `reader` took, cached per writer; nullopt when it is no longer known.
+  std::optional<Key> owner(const transport::Entity& reader, dds_instance_handle_t writer);
+  // Whether that writer is in the server's participant.
+  bool from_server(const transport::Entity& reader, dds_instance_handle_t writer);
+  void take_states();
   bool wait(Millis timeout, const std::function<bool()>& done);
   bool connected();
+  bool serves_us(const dds_guid_t& participant);  // it sent a SceneInfo and reads our commands and answers us
 
   std::string sim_id_, client_id_;
+  std::string denied_;  // declared before topics_, whose initialisation (topics_for) sets it
   transport::Entity participant_;
   transport::Topics topics_;
   transport::Writer<ladder_msg_Command> command_w_;
@@ -155,12 +180,20 @@ class Client {
   // The participant of the writer of our latest State (the server's), and that writer.
   std::optional<dds_guid_t> server_;
   dds_instance_handle_t server_writer_ = 0;
+  bool confirmed_ = false;  // connected() found server_ to be a server (see take_states)
+  // Until then, the participants (and their State writers) that may be the server, the latest last.
+  std::vector<std::pair<dds_guid_t, dds_instance_handle_t>> candidates_;
   // connected() said yes for this server's writer while the command writer had this many readers.
   dds_instance_handle_t connected_writer_ = 0;
   std::uint32_t connected_readers_ = 0;
   std::uint64_t state_count_ = 0;
   std::uint64_t states_malformed_ = 0;
   std::optional<SceneInfo> scene_;
+  // The latest SceneInfo of each participant that sent one (a few): the server's may come before its first State.
+  std::map<Key, SceneInfo> scenes_;
+  std::vector<std::pair<Key, Event>> early_events_;  // events that came before the server was known (bounded)
+  std::map<dds_instance_handle_t, Key> owners_;       // writer -> its participant (owner())
+  std::uint64_t forged_ = 0;
   std::optional<ladder_msg_Stats> stats_;
   std::uint64_t stats_count_ = 0;
 };

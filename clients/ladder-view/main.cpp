@@ -1,11 +1,13 @@
 // ladder-view: the viewer of ladderd. A window by default (SDL2); --png FILE writes one snapshot, --ascii draws in
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
+#include "transport/security.hpp"
 #include "transport/version.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <optional>
 
 namespace {
 
@@ -50,6 +52,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.1, 100.0));
   app.add_option("--size", size, "WxH: window or PNG pixels (default 900x700); --ascii: characters (default: the "
                                  "terminal's, else 100x40)");
+  std::string security;
+  app.add_option("--security", security,
+                 "DDS Security: this viewer's identity folder DIR/NAME of scripts/make-pki (docs/security.md)");
   app.add_option("--view", view, "X,Y,SCALE: centre the view on (X, Y) m at SCALE px/m instead of framing the ladder");
   try {
     app.parse(argc, argv);
@@ -61,6 +66,19 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? kOk : kUsage;
+  }
+  // Checked before DDS starts; every participant this process makes then uses it (the viewer only reads).
+  std::optional<ladder::transport::Identity> identity;
+  if (!security.empty()) {
+    try {
+      identity = ladder::transport::load_identity(security);
+      ladder::transport::require_role(*identity, {ladder::transport::Role::Viewer, ladder::transport::Role::Controller},
+                                      "ladder-view");
+    } catch (const ladder::transport::SecurityError& e) {
+      std::fprintf(stderr, "ladder-view: security: %s\n", e.what());
+      return kUsage;
+    }
+    ladder::transport::set_default_identity(&*identity);
   }
   if (!o.png.empty()) return run_png(o);
   if (o.ascii) return run_ascii(o);

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <functional>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 namespace ladder::ctl {
@@ -65,9 +66,35 @@ std::string no_server(const Connection& c) {
 
 Millis timeout_of(const Connection& c) { return Millis(static_cast<long>(c.timeout * 1000)); }
 
-// Connects (once) and waits for the server; nullptr when it did not answer.
+// The identity of --security, checked (a controller's or a viewer's) before DDS sees it; kept for the process.
+const transport::Identity* identity_for(const Connection& c) {
+  static std::optional<transport::Identity> id;
+  if (c.security.empty()) return nullptr;
+  if (!id || id->dir != c.security) {
+    transport::Identity loaded = transport::load_identity(c.security);
+    transport::require_role(loaded, {transport::Role::Controller, transport::Role::Viewer}, "ladderctl");
+    id = std::move(loaded);
+  }
+  return &*id;
+}
+
+// Makes the client (once); kAccepted, or the exit code of what went wrong (printed).
+int make_client(const Connection& c, std::unique_ptr<Client>& client) {
+  if (client) return kAccepted;
+  try {
+    client = std::make_unique<Client>(c.domain, c.sim_id, std::string{}, identity_for(c));
+  } catch (const transport::SecurityError& e) {
+    std::cerr << "ladderctl: security: " << e.what() << "\n";
+    return kUsage;
+  } catch (const transport::DdsError& e) {
+    std::cerr << "ladderctl: " << e.what() << "\n";
+    return kUsage;
+  }
+  return kAccepted;
+}
+
+// Waits for the server (once); nullptr when it did not answer.
 Client* connect(Connection& c, std::unique_ptr<Client>& client) {
-  if (!client) client = std::make_unique<Client>(c.domain, c.sim_id);
   if (!client->scene_info() && !client->wait_for_server(timeout_of(c))) {
     std::cerr << "ladderctl: " << no_server(c) << "\n";
     return nullptr;
@@ -76,6 +103,10 @@ Client* connect(Connection& c, std::unique_ptr<Client>& client) {
 }
 
 int send(Client& client, const Connection& c, const ladder_msg_Command& command) {
+  if (!client.may_command()) {
+    std::cerr << "ladderctl: " << client.denied() << "\n";
+    return kDenied;
+  }
   const std::uint64_t id = client.send(command);
   const auto ack = client.wait_ack(id, timeout_of(c));
   if (!ack) {
@@ -250,6 +281,8 @@ void add_connection(CLI::App& app, Connection& c) {
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--security", c.security,
+                 "DDS Security: this client's identity folder DIR/NAME of scripts/make-pki (docs/security.md)");
 }
 
 // Declares every subcommand; the chosen one's callback leaves its action in `action`.
@@ -414,9 +447,11 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
     const int code = app.exit(e);
     return code == 0 ? kAccepted : kUsage;
   }
-  if (conn.domain != before.domain || conn.sim_id != before.sim_id) client.reset();
+  if (conn.domain != before.domain || conn.sim_id != before.sim_id || conn.security != before.security)
+    client.reset();
   if (standalone) return standalone(conn);
   if (!action) return kNoCommand;
+  if (const int code = make_client(conn, client); code != kAccepted) return code;
   Client* c = connect(conn, client);
   if (!c) return kNoServer;
   return action(*c, conn);

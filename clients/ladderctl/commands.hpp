@@ -15,6 +15,7 @@ enum Exit : int {
   kRefused = 1,   // the server refused it; the reason is printed
   kUsage = 2,     // bad command line
   kNoServer = 3,  // no ladderd answered within the timeout
+  kDenied = 4,    // DDS Security: this identity may not send commands (a viewer's); the missing permission is printed
   kNoCommand = -1,  // (internal) only options were given: start the prompt
 };
 
@@ -22,6 +23,7 @@ struct Connection {
   int domain = 0;
   std::string sim_id = "ladder";
   double timeout = 3;  // [s]
+  std::string security;  // DDS Security identity folder (scripts/make-pki DIR/NAME); empty = none
 };
 
 // The names of every subcommand, for help and completion.

@@ -1,5 +1,6 @@
 // ladderctl: the console client of ladderd. `ladderctl COMMAND ...` sends one command and prints the server's
-// answer (exit code 0 accepted, 1 refused, 2 bad usage, 3 no server); `ladderctl` alone opens a prompt.
+// answer (exit code 0 accepted, 1 refused, 2 bad usage, 3 no server, 4 not permitted by DDS Security); `ladderctl`
+// alone opens a prompt.
 #include "commands.hpp"
 #include "prompt.hpp"
 

@@ -91,6 +91,15 @@ const std::vector<Key>& keys() {
       number_key("commands.reach", [](DaemonConfig& c, double v) { c.server.limits.reach = v; }),
       integer_key("commands.max_step_count", 1, 1'000'000'000,
                   [](DaemonConfig& c, long long v) { c.server.limits.max_step_count = static_cast<std::uint32_t>(v); }),
+      {"server.security",
+       [](const toml::node& n, DaemonConfig& c, const fs::path& d) {
+         c.security = path_in(n, d);
+         try {
+           if (!c.security.empty()) server_identity(c.security);
+         } catch (const ConfigError& e) {
+           throw std::invalid_argument(e.what());  // positioned at the value by load_config
+         }
+       }},
       {"log.level", [](const toml::node& n, DaemonConfig& c, const fs::path&) { c.log_level = text(n); }},
       {"log.file", [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.log_file = path_in(n, d); }},
   };
@@ -141,6 +150,16 @@ void check_config(const DaemonConfig& c) {
   static constexpr std::array levels{"trace", "debug", "info", "warn", "error", "off"};
   if (std::find(levels.begin(), levels.end(), c.log_level) == levels.end())
     throw ConfigError("log.level must be trace, debug, info, warn, error or off, not '" + c.log_level + "'", "log.level");
+}
+
+transport::Identity server_identity(const std::string& dir) {
+  try {
+    transport::Identity id = transport::load_identity(dir);
+    transport::require_role(id, {transport::Role::Server}, "ladderd");
+    return id;
+  } catch (const transport::SecurityError& e) {
+    throw ConfigError(std::string("security: ") + e.what(), "server.security");
+  }
 }
 
 void load_config(const std::string& path, DaemonConfig& config) {

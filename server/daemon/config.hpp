@@ -2,6 +2,7 @@
 #pragma once
 
 #include "daemon/server.hpp"
+#include "transport/security.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -14,6 +15,7 @@ struct DaemonConfig {
   std::string scene;  // scene file; empty = the built-in classic toy at rest
   std::string log_level = "info";
   std::string log_file;  // empty = standard error only
+  std::string security;  // DDS Security: the server's identity folder (scripts/make-pki); empty = none
 };
 
 class ConfigError : public std::runtime_error {
@@ -31,5 +33,8 @@ void load_config(const std::string& path, DaemonConfig& config);
 
 // The checks a value gets whether it comes from the file or the command line: ConfigError("KEY ...why", KEY).
 void check_config(const DaemonConfig& config);
+
+// The checked server identity of the folder `dir` (server.security, --security); throws ConfigError with what is wrong.
+transport::Identity server_identity(const std::string& dir);
 
 }  // namespace ladder::daemon

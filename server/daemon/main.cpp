@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <memory>
+#include <optional>
 #include <iostream>
 
 int main(int argc, char** argv) {
@@ -22,6 +23,7 @@ int main(int argc, char** argv) {
   daemon::DaemonConfig c;
   c.server.scenes_dir = daemon::default_scenes_dir(LADDER_INSTALLED_SCENES, LADDER_SCENES_DIR);
   std::string config_file, resimulate, resume;
+  std::optional<transport::Identity> identity;  // --security: outlives every participant (made in run_server)
   bool offline = false, quiet = false, keys = false;
   app.add_option("--config", config_file, "configuration file (TOML), e.g. config/ladderd.toml")
       ->check(CLI::ExistingFile);
@@ -43,6 +45,9 @@ int main(int argc, char** argv) {
                               "time, for that much CPU; 0 = off");
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
+  auto* security = app.add_option("--security", c.security,
+                                  "DDS Security: this server's identity folder DIR/NAME of scripts/make-pki "
+                                  "(docs/security.md); default: none");
   app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
   app.add_option("--tick-log", c.server.tick_log,
                  "write one line per tick of the real-time loop to FILE: start, lateness, step time, commands");
@@ -84,7 +89,10 @@ int main(int argc, char** argv) {
     if (level->count()) c.log_level = cli.log_level;
     if (log_file->count()) c.log_file = cli.log_file;
     if (!o.scene.empty()) c.scene = daemon::find_scene(o.scene, c.server.scenes_dir);
+    if (security->count()) c.security = cli.security;
     daemon::check_config(c);
+    // Checked before DDS starts: a bad identity folder is named with what is wrong with it, not Cyclone's refusal.
+    if (!c.security.empty()) identity = daemon::server_identity(c.security);
     daemon::setup_logging(c);
   } catch (const std::exception& e) {
     std::cerr << "ladderd: " << e.what() << "\n";
@@ -116,6 +124,11 @@ int main(int argc, char** argv) {
   static std::atomic<bool> stop{false};
   daemon::catch_stop_signals(stop);
   transport::use_default_config(transport::kDefaultCycloneConfig);
+  if (identity) {
+    transport::set_default_identity(&*identity);
+    spdlog::info("DDS Security on: the server '{}' ({}), certificate valid until {}", identity->name,
+                 identity->subject, identity->not_after);
+  }
   try {
     const int rc = daemon::run_server(c.server, std::move(session), stop);
     daemon::log_stop_reason();

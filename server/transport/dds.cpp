@@ -1,5 +1,7 @@
 #include "transport/dds.hpp"
 
+#include "transport/security.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <cstdlib>
@@ -135,9 +137,17 @@ void apply_profile(Qos& qos, Profile p) {
   }
 }
 
-Entity make_participant(dds_domainid_t domain) {
-  return Entity(check(dds_create_participant(domain, nullptr, nullptr),
-                      "create DDS participant on domain " + std::to_string(domain)));
+Entity make_participant(dds_domainid_t domain, const Identity* identity) {
+  if (identity == nullptr) identity = default_identity();
+  if (identity == nullptr)
+    return Entity(check(dds_create_participant(domain, nullptr, nullptr),
+                        "create DDS participant on domain " + std::to_string(domain)));
+  Qos q;
+  apply_security(q, *identity);
+  return Entity(check(dds_create_participant(domain, q.get(), nullptr),
+                      "create DDS participant on domain " + std::to_string(domain) + " with the " +
+                          role_name(identity->role) + " identity " + identity->dir +
+                          " (Cyclone's security plugins refused it; run with --log-level debug for their reason)"));
 }
 
 Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name) {

@@ -99,7 +99,10 @@ inline constexpr std::int32_t kAckDepth = 4096;
 void route_cyclone_log(void (*sink)(const char* message), const char* topic);
 std::uint64_t undecodable_samples();
 
-Entity make_participant(dds_domainid_t domain);
+struct Identity;  // transport/security.hpp
+// A participant on `domain`; with DDS Security when `identity` is given, or else when a default identity is set
+// (set_default_identity, from a program's --security).
+Entity make_participant(dds_domainid_t domain, const Identity* identity = nullptr);
 Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name);
 
 // Which participant a remote endpoint belongs to, from the built-in topics' data. A client uses this to know that

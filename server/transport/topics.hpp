@@ -10,11 +10,13 @@
 namespace ladder::transport {
 
 struct Topics {
-  explicit Topics(const Entity& participant)
+  // commands = false: without Command and CommandAck (left empty), for a participant whose DDS Security
+  // permissions grant neither (a viewer's): Cyclone refuses to create a topic the permissions do not name.
+  explicit Topics(const Entity& participant, bool commands = true)
       : scene_info(make_topic(participant, &ladder_msg_SceneInfo_desc, "ladder/SceneInfo")),
         state(make_topic(participant, &ladder_msg_State_desc, "ladder/State")),
-        command(make_topic(participant, &ladder_msg_Command_desc, "ladder/Command")),
-        ack(make_topic(participant, &ladder_msg_CommandAck_desc, "ladder/CommandAck")),
+        command(commands ? make_topic(participant, &ladder_msg_Command_desc, "ladder/Command") : Entity()),
+        ack(commands ? make_topic(participant, &ladder_msg_CommandAck_desc, "ladder/CommandAck") : Entity()),
         event(make_topic(participant, &ladder_msg_Event_desc, "ladder/Event")),
         stats(make_topic(participant, &ladder_msg_Stats_desc, "ladder/Stats")) {}
 
