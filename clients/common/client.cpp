@@ -239,9 +239,15 @@ bool Client::wait_for_server(Millis timeout) {
 }
 
 std::uint64_t Client::send(ladder_msg_Command c) {
+  const std::uint64_t id = next_id_++;
+  resend(c, id);
+  return id;
+}
+
+void Client::resend(ladder_msg_Command c, std::uint64_t id) {
   copy_text(c.sim_id, sim_id_);
   copy_text(c.client_id, client_id_);
-  c.command_id = next_id_++;
+  c.command_id = id;
   // A write waits up to 1 s for room (commands are keep-all, so that none is lost); a server held up for longer (a
   // loaded machine) is given four more tries before the failure is the caller's.
   for (int tries = 1;; ++tries) {
@@ -249,7 +255,6 @@ std::uint64_t Client::send(ladder_msg_Command c) {
     if (rc >= 0) break;
     if (rc != DDS_RETCODE_TIMEOUT || tries == 5) transport::check(rc, "write a command");
   }
-  return c.command_id;
 }
 
 std::optional<Ack> Client::wait_ack(std::uint64_t id, Millis timeout) {

@@ -103,6 +103,11 @@ class Client {
   bool wait_for_server(Millis timeout);
   // Sends a command (sim id, client id and a fresh command id filled in) and returns its id.
   std::uint64_t send(ladder_msg_Command c);
+  // Sends command `id` again (sim id and client id filled in): the resend after no answer, e.g. when a partition
+  // longer than the DDS lease lost what was written during it. The server applies a (client id, command id) among
+  // the client's last 1024 once and answers a repeat with the first ack (docs/server.md; docs/network.md, "When the
+  // network fails").
+  void resend(ladder_msg_Command c, std::uint64_t id);
   // The ack of command `id`, waiting up to `timeout`.
   std::optional<Ack> wait_ack(std::uint64_t id, Millis timeout);
   // send + wait_ack; throws std::runtime_error at the timeout.

@@ -51,7 +51,7 @@ std::string format_ack(const client::Ack& a) {
   if (a.accepted) {
     std::snprintf(buf, sizeof buf, "accepted at t = %.3f s (step %llu)", a.sim_time,
                   static_cast<unsigned long long>(a.step));
-    return buf;
+    return a.reason.empty() ? std::string(buf) : std::string(buf) + ": " + a.reason;  // a note (e.g. from reset)
   }
   return "refused: " + a.reason;
 }
@@ -262,7 +262,9 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   simple("tip", "turn the held top block over (the ripple starts)", &cmd::tip);
   simple("pause", "stop the simulation clock", &cmd::pause);
   simple("resume", "start the simulation clock again", &cmd::resume);
-  simple("reset", "back to the start of the current scene (live settings are kept)", &cmd::reset);
+  simple("reset", "back to the start of the current scene (live settings are kept, unless the last step failed: "
+                  "then the scene's own)",
+         &cmd::reset);
 
   auto* poke = app.add_subcommand("poke", "an impulse on a block");
   poke->add_option("BLOCK", v.index, "block number (0 is the top)")->required();

@@ -14,6 +14,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <thread>
 #include <vector>
 
@@ -110,6 +111,42 @@ class Publisher {
   std::uint64_t seq_ = 0;
 };
 
+using Clock = std::chrono::steady_clock;
+
+// Paces the replay by the events' recorded wall times. A pause of more than kLongPause in the recording (a server
+// left paused, or a forged timestamp 2^62 us ahead) is played as kLongPause: a replay never stalls on one gap.
+// Times that go back a little (states and the other records are stamped on different paths) wait for nothing.
+class Pacer {
+ public:
+  static constexpr double kLongPause = 10e6;  // [us of recorded time]
+  explicit Pacer(double speed) : speed_(speed) {}
+
+  void wait(std::int64_t utime, const std::atomic<bool>& stop) {
+    const auto t = static_cast<double>(utime);  // in doubles: no overflow on any timestamp
+    if (!started_) started_ = true, start_ = Clock::now(), latest_ = t;
+    double behind = 0;  // how far this event lies before the latest one [us]
+    if (t > latest_) {
+      played_ += std::min(t - latest_, kLongPause);
+      shortened_ += t - latest_ > kLongPause;
+      latest_ = t;
+    } else {
+      behind = latest_ - t;
+    }
+    if (speed_ <= 0 || behind > 0) return;
+    const auto due = start_ + std::chrono::microseconds(static_cast<std::int64_t>(played_ / speed_));
+    while (!stop && Clock::now() < due)
+      std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(50)));
+  }
+  std::uint64_t shortened() const { return shortened_; }
+
+ private:
+  double speed_;
+  bool started_ = false;
+  Clock::time_point start_{};
+  double latest_ = 0, played_ = 0;  // [us] the latest timestamp so far; recorded time played, pauses shortened
+  std::uint64_t shortened_ = 0;
+};
+
 }  // namespace
 
 int replay(const ReplayOptions& o) {
@@ -127,28 +164,30 @@ int replay(const ReplayOptions& o) {
   sigaction(SIGINT, &sa, &old);
   std::cout << "replaying " << o.log << " as sim id '" << o.sim_id << "' on DDS domain " << o.domain
             << " (Ctrl-C to stop)\n";
-  using Clock = std::chrono::steady_clock;
-  const Clock::time_point start = Clock::now();
-  std::int64_t first_utime = -1;
+  Pacer pacer(o.speed);
   std::uint64_t states = 0, events = 0, bad_states = 0;
   double last_t = 0;
+  std::map<std::int32_t, std::int32_t> blocks;  // of each generation whose scene record has come
+  int rc = 0;
   try {
     while (!g_stop) {
       const auto e = reader->next();
       if (!e) break;
-      // Pace by the recorded wall times, from the first event that is played.
-      const auto wait_for = [&](std::int64_t utime) {
-        if (first_utime < 0) first_utime = utime;
-        if (o.speed <= 0) return;
-        const auto due = start + std::chrono::microseconds(
-                                     static_cast<std::int64_t>(static_cast<double>(utime - first_utime) / o.speed));
-        while (!g_stop && Clock::now() < due)
-          std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(50)));
-      };
+      const auto wait_for = [&](std::int64_t utime) { pacer.wait(utime, g_stop); };
       if (e->channel == transport::kSceneChannel) {
-        out.scene(reader->decode<ladderlcm::scene_t>(*e));  // always, so a viewer knows what it sees
+        const auto s = reader->decode<ladderlcm::scene_t>(*e);
+        if (const auto b = blocks.try_emplace(s.generation, s.blocks).first; b->second != s.blocks)
+          reader->refuse(*e, "scene_t", "generation " + std::to_string(s.generation) + " has " +
+                                            std::to_string(s.blocks) + " blocks here, " + std::to_string(b->second) +
+                                            " in its first scene record");
+        out.scene(s);  // always, so a viewer knows what it sees
       } else if (e->channel == transport::kStateChannel) {
         const auto s = reader->decode<ladderlcm::state_t>(*e);
+        // A viewer draws a state on its scene: their numbers of blocks must agree. (A state may come just before
+        // the scene record of its generation: the two reach the recorder by different paths.)
+        if (const auto b = blocks.find(s.generation); b != blocks.end() && b->second != s.num_blocks)
+          reader->refuse(*e, "state_t", "a state of " + std::to_string(s.num_blocks) + " blocks in a scene of " +
+                                            std::to_string(b->second));
         if (s.sim_time + 1e-9 < o.from) continue;
         wait_for(e->utime);
         if (!out.state(s)) {
@@ -165,11 +204,15 @@ int replay(const ReplayOptions& o) {
         ++events;
       }
     }
-  } catch (const std::exception& ex) {
-    std::cerr << "ladderctl: " << ex.what() << "\n";
+  } catch (const std::exception& ex) {  // a bad event: what came before it was played
+    std::cerr << "ladderctl: " << ex.what() << "; the replay stops there\n";
+    rc = 2;
   }
   sigaction(SIGINT, &old, nullptr);
   if (!reader->damage().empty()) std::cerr << "ladderctl: " << o.log << ": " << reader->damage() << "\n";
+  if (pacer.shortened())
+    std::cerr << "ladderctl: " << o.log << ": " << pacer.shortened() << " pause(s) longer than "
+              << Pacer::kLongPause / 1e6 << " s in the recording played as " << Pacer::kLongPause / 1e6 << " s\n";
   if (bad_states)
     std::cerr << "ladderctl: " << o.log << ": skipped " << bad_states
               << " state(s) with a hinge status other than 0, 1 or 2 (hinged, locked, broken)\n";
@@ -177,7 +220,7 @@ int replay(const ReplayOptions& o) {
               static_cast<unsigned long long>(events), last_t);
   // Transient-local data lives as long as its writer: give late viewers a moment to take the last state.
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  return 0;
+  return rc;
 }
 
 }  // namespace ladder::ctl

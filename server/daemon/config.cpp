@@ -114,10 +114,14 @@ void check_config(const DaemonConfig& c) {
       throw ConfigError("server.sim_id '" + s.sim_id + "' may hold only letters, digits, '-', '_' and '.'",
                         "server.sim_id");
   positive(s.rates.physics, 100'000, "server.physics_rate");
-  positive(s.rates.publish, s.rates.physics, "server.publish_rate", "server.physics_rate");
+  // The same bounds as `set` (session.hpp): below them the server would stop publishing or freeze the simulation.
+  if (!(s.rates.publish >= kMinPublishRate && s.rates.publish <= s.rates.physics))
+    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate", "server.publish_rate");
   positive(s.stats_rate, 100, "server.stats_rate");
-  if (!(s.rates.real_time_factor >= 0 && s.rates.real_time_factor <= 1000))
-    throw ConfigError("server.real_time_factor must be from 0 (as fast as possible) to 1000", "server.real_time_factor");
+  const double rtf = s.rates.real_time_factor;
+  if (!(rtf == 0 || (rtf >= kMinRealTimeFactor && rtf <= kMaxRealTimeFactor)))
+    throw ConfigError("server.real_time_factor must be from 0.01 to 1000, or 0 (as fast as possible)",
+                      "server.real_time_factor");
   if (!(s.realtime_priority >= 0 && s.realtime_priority <= 99))
     throw ConfigError("server.realtime_priority must be from 0 (normal scheduling) to 99", "server.realtime_priority");
   // At most half the tick: under SCHED_FIFO the spinning physics thread keeps the I/O thread (one priority lower)

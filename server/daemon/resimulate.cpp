@@ -1,11 +1,16 @@
 #include "daemon/resimulate.hpp"
 
+#include "daemon/server.hpp"
+
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <tuple>
 
@@ -15,9 +20,15 @@ namespace {
 
 using transport::copy_text;
 
+// The scene a record describes, made again from its text; its states were checked against its `blocks`, so the
+// text must make that many.
 scene::Scene scene_of(const ladderlcm::scene_t& s) {
   scene::Scene sc = scene::remake_scene(s.toml, s.source, s.overrides, s.clear_timeline);
   sc.name = s.name;
+  if (sc.ladder.blocks != s.blocks)
+    throw std::runtime_error("the scene record of generation " + std::to_string(s.generation) + " says " +
+                             std::to_string(s.blocks) + " blocks, but its text makes " +
+                             std::to_string(sc.ladder.blocks));
   return sc;
 }
 
@@ -94,33 +105,168 @@ ladder_msg_Command command_of(const ladderlcm::command_t& m) {
   return c;
 }
 
-SessionLog read_session_log(const std::string& path) {
-  transport::LogReader reader(path);
+namespace {
+
+// Where each record came from, for messages: "<path>: event 12 (LADDER_STATE at byte 4096): ...".
+struct Origin {
+  std::uint64_t event;
+  std::size_t offset;
+};
+[[noreturn]] void refuse(const SessionLog& log, const char* channel, const Origin& o, const std::string& why) {
+  throw std::runtime_error(log.path + ": event " + std::to_string(o.event) + " (" + channel + " at byte " +
+                           std::to_string(o.offset) + "): " + why);
+}
+
+// What the scene records of one generation allow: its number of blocks and the range of its dt (a live setting
+// can change dt within a generation).
+struct GenerationInfo {
+  std::int32_t blocks = 0;
+  double min_dt = 0, max_dt = 0;
+  std::vector<std::int64_t> checkpoint_steps;  // sorted
+};
+
+// The server writes a checkpoint at each scene's start and every checkpoint_every of sim time; a recorded step
+// more than two intervals (and a step) past the last checkpoint before it is one no run of the server makes, and
+// would let a few bytes of log ask a re-run for 2^62 steps. (Not constexpr: clang does not take a ServerConfig, with
+// its std::string members, in a constant expression.)
+const double kCheckpointGap = 2 * ServerConfig{}.checkpoint_every + transport::kLogMaxDt;
+
+std::string place(std::int32_t generation, std::int64_t step) {
+  return "generation " + std::to_string(generation) + ", step " + std::to_string(step);
+}
+
+// A step (and, for states and checkpoints, its time) fits generation g's scene.
+std::string check_step(const std::map<std::int32_t, GenerationInfo>& gens, const char* what, std::int32_t g,
+                       std::int64_t step, const double* t) {
+  const auto it = gens.find(g);
+  if (it == gens.end())
+    return std::string("a ") + what + " of generation " + std::to_string(g) + ", which no scene record starts";
+  const GenerationInfo& info = it->second;
+  if (t) {
+    // Time is the sum of the steps' dt: between step * min_dt and step * max_dt (with rounding to spare).
+    const double lo = static_cast<double>(step) * info.min_dt, hi = static_cast<double>(step) * info.max_dt;
+    if (*t < lo * (1 - 1e-6) - info.max_dt || *t > hi * (1 + 1e-6) + info.max_dt) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "a %s at %s with t = %g s: %lld steps of dt = %g .. %g s take %g .. %g s", what,
+                    place(g, step).c_str(), *t, static_cast<long long>(step), info.min_dt, info.max_dt, lo, hi);
+      return buf;
+    }
+  }
+  const auto& cps = info.checkpoint_steps;
+  const auto after = std::upper_bound(cps.begin(), cps.end(), step);
+  const std::int64_t anchor = after == cps.begin() ? 0 : *(after - 1);
+  const auto most = static_cast<std::int64_t>(std::ceil(kCheckpointGap / info.min_dt)) + 2;
+  if (step - anchor > most) {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "a %s at %s, %lld steps after the checkpoint before it (step %lld): the server writes one every "
+                  "%g s of sim time, so a step lies at most %lld steps past one at this scene's dt",
+                  what, place(g, step).c_str(), static_cast<long long>(step - anchor),
+                  static_cast<long long>(anchor), ServerConfig{}.checkpoint_every, static_cast<long long>(most));
+    return buf;
+  }
+  return {};
+}
+
+struct Origins {
+  std::vector<Origin> scenes, commands, states, checkpoints;
+};
+
+// The checks across records (each record's own values were checked as it was decoded).
+void check_session(const SessionLog& log, const Origins& at) {
+  std::map<std::int32_t, GenerationInfo> gens;
+  for (std::size_t i = 0; i < log.scenes.size(); ++i) {
+    const ladderlcm::scene_t& s = log.scenes[i];
+    if (i == 0 && s.generation != 0)
+      refuse(log, transport::kSceneChannel, at.scenes[i],
+             "the first scene record has generation " + std::to_string(s.generation) + " (a log starts at 0)");
+    auto [it, fresh] = gens.try_emplace(s.generation, GenerationInfo{s.blocks, s.dt, s.dt, {}});
+    if (!fresh && it->second.blocks != s.blocks)
+      refuse(log, transport::kSceneChannel, at.scenes[i],
+             "generation " + std::to_string(s.generation) + " has " + std::to_string(s.blocks) +
+                 " blocks here, " + std::to_string(it->second.blocks) + " in its first scene record");
+    it->second.min_dt = std::min(it->second.min_dt, s.dt);
+    it->second.max_dt = std::max(it->second.max_dt, s.dt);
+  }
+  for (std::size_t i = 0; i < log.checkpoints.size(); ++i) {
+    const ladderlcm::checkpoint_t& c = log.checkpoints[i];
+    const auto it = gens.find(c.generation);
+    if (it == gens.end())
+      refuse(log, transport::kCheckpointChannel, at.checkpoints[i],
+             "a checkpoint of generation " + std::to_string(c.generation) + ", which no scene record starts");
+    it->second.checkpoint_steps.push_back(c.step);
+  }
+  for (auto& [g, info] : gens) std::sort(info.checkpoint_steps.begin(), info.checkpoint_steps.end());
+  for (std::size_t i = 0; i < log.checkpoints.size(); ++i) {
+    const ladderlcm::checkpoint_t& c = log.checkpoints[i];
+    if (const auto why = check_step(gens, "checkpoint", c.generation, c.step, &c.sim_time); !why.empty())
+      refuse(log, transport::kCheckpointChannel, at.checkpoints[i], why);
+  }
+  for (std::size_t i = 0; i < log.states.size(); ++i) {
+    const ladderlcm::state_t& s = log.states[i];
+    if (const auto why = check_step(gens, "state", s.generation, s.step, &s.sim_time); !why.empty())
+      refuse(log, transport::kStateChannel, at.states[i], why);
+    if (s.num_blocks != gens.at(s.generation).blocks)
+      refuse(log, transport::kStateChannel, at.states[i],
+             "a state of " + std::to_string(s.num_blocks) + " blocks in a scene of " +
+                 std::to_string(gens.at(s.generation).blocks));
+  }
+  for (std::size_t i = 0; i < log.commands.size(); ++i) {
+    const ladderlcm::command_t& c = log.commands[i];
+    if (const auto why = check_step(gens, "command", c.generation, c.step, nullptr); !why.empty())
+      refuse(log, transport::kCommandChannel, at.commands[i], why);
+    // The server logs its commands in the order it applied them.
+    if (i > 0 && c.command_seq <= log.commands[i - 1].command_seq)
+      refuse(log, transport::kCommandChannel, at.commands[i],
+             "command_seq " + std::to_string(c.command_seq) + " after " +
+                 std::to_string(log.commands[i - 1].command_seq) + " (the server logs them in increasing order)");
+  }
+}
+
+SessionLog read_events(transport::LogReader& reader) {
   SessionLog log;
-  log.path = path;
+  log.path = reader.path();
+  Origins at;
   while (auto e = reader.next()) {
+    const Origin o{e->number, e->offset};
     if (e->channel == transport::kSceneChannel) {
       log.scenes.push_back(reader.decode<ladderlcm::scene_t>(*e));
+      at.scenes.push_back(o);
     } else if (e->channel == transport::kCommandChannel) {
       log.commands.push_back(reader.decode<ladderlcm::command_t>(*e));
+      at.commands.push_back(o);
     } else if (e->channel == transport::kStateChannel) {
       log.states.push_back(reader.decode<ladderlcm::state_t>(*e));
+      at.states.push_back(o);
     } else if (e->channel == transport::kCheckpointChannel) {
       log.checkpoints.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
+      at.checkpoints.push_back(o);
     } else if (e->channel == transport::kEventChannel) {
+      reader.decode<ladderlcm::event_t>(*e);  // not needed to re-run, but a log with a bad one is a bad log
       ++log.events;
     }
   }
   log.damage = reader.damage();
   if (log.scenes.empty())
-    throw std::runtime_error(path + ": no scene record" +
+    throw std::runtime_error(log.path + ": no scene record" +
                              (log.damage.empty() ? std::string(" (not a ladderd session log?)") : ": " + log.damage));
-  std::stable_sort(log.commands.begin(), log.commands.end(),
-                   [](const auto& a, const auto& b) { return a.command_seq < b.command_seq; });
+  check_session(log, at);
   return log;
 }
 
-Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, long stop_after_checkpoint,
+}  // namespace
+
+SessionLog read_session_log(const std::string& path) {
+  transport::LogReader reader(path);
+  return read_events(reader);
+}
+
+SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std::string& name) {
+  transport::LogReader reader(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), name);
+  return read_events(reader);
+}
+
+Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, Until until,
                         const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
   Resimulation r;
   session = std::make_unique<Session>(scene_of(log.scenes.front()), "", unlimited(), Rates{});
@@ -137,6 +283,8 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       ++next_command;
       applied = c.command_seq;
       ++r.commands;
+      ++r.commands_after_checkpoint;
+      ++(c.accepted ? r.accepted : r.refused);
       if (!c.accepted) continue;  // refused: it changed nothing
       if (c.kind == ladder_msg_LOAD_SCENE) {
         // The scene text comes from the log (the file may have changed since).
@@ -166,6 +314,9 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       if (gen < g && (next_command >= log.commands.size() || log.commands[next_command].generation != gen ||
                       log.commands[next_command].step < step))
         return false;
+      // As the server does: paused, a step is one that a step command ordered (so that a resumed session keeps
+      // only the ordered steps not yet taken where the log ends).
+      if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
       session->step();
       ++r.steps;
       if (progress && r.steps % 10000 == 0) progress(r.steps, r.states);
@@ -216,8 +367,22 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       break;
     }
     ++r.checkpoints;
-    if (static_cast<long>(m.index) == stop_after_checkpoint) break;
+    r.commands_after_checkpoint = 0;
   }
+  // On past the last state or checkpoint: each command at its recorded place (only a command leads to another
+  // generation, and every step taken lies before a recorded command, so this too ends).
+  while (until == Until::kLastCommand && r.identical && next_command < log.commands.size()) {
+    const ladderlcm::command_t& c = log.commands[next_command];
+    if (!reach(c.generation, c.step, applied) || (apply_due(c.command_seq), applied != c.command_seq)) {
+      r.identical = false;
+      r.difference = "could not reach command " + std::to_string(c.command_seq) + " (" +
+                     to_string(static_cast<ladder_msg_CommandKind>(c.kind)) + ") at its recorded " +
+                     place(c.generation, c.step) + "; the re-run stands at " +
+                     place(static_cast<std::int32_t>(session->generation()),
+                           static_cast<std::int64_t>(session->sim().steps()));
+    }
+  }
+  r.last_command_seq = static_cast<std::uint64_t>(applied);
   r.sim_time = session->sim().time();
   return r;
 }

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,7 @@ namespace ladder::daemon {
 struct SessionLog {
   std::string path;
   std::vector<ladderlcm::scene_t> scenes;          // in log order
-  std::vector<ladderlcm::command_t> commands;      // sorted by command_seq
+  std::vector<ladderlcm::command_t> commands;      // in log order, which is command_seq's (checked)
   std::vector<ladderlcm::state_t> states;          // in log order
   std::vector<ladderlcm::checkpoint_t> checkpoints;
   std::uint64_t events = 0;                        // event records (not needed to re-run)
@@ -36,21 +37,35 @@ struct SessionLog {
 ladderlcm::command_t command_record(const ladder_msg_Command& c);
 ladder_msg_Command command_of(const ladderlcm::command_t& m);
 
-// Reads a whole log. Throws std::runtime_error naming the file and the problem (not a log, an undecodable event,
-// no scene record); a damaged or cut-off end is not an error: reading stops there and `damage` says where.
+// Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the
+// records agree with each other (each generation has a scene record, a state has its scene's number of blocks, a
+// step fits the time at the scene's dt and lies within two checkpoint intervals of a checkpoint, command_seq
+// increases), so that a re-run of it always ends. Throws std::runtime_error naming the file, the event and what is
+// wrong (not a log, an undecodable or impossible event, no scene record); a damaged or cut-off end is not an
+// error: reading stops there and `damage` says where.
 SessionLog read_session_log(const std::string& path);
+// The same on bytes in memory (a fuzzer's input); `name` stands for the path in messages.
+SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std::string& name = "(bytes)");
 
 struct Resimulation {
   bool identical = true;
   std::string difference;  // the first difference, with its generation, step and what differs
   std::uint64_t steps = 0, states = 0, checkpoints = 0, commands = 0;
+  std::uint64_t accepted = 0, refused = 0;   // of the commands applied, as the server answered them
+  std::uint64_t commands_after_checkpoint = 0;  // commands applied after the last checkpoint passed
+  std::uint64_t last_command_seq = 0;           // the command_seq of the last command applied
   double sim_time = 0;
 };
 
+// How far a re-run goes: to the last recorded state or checkpoint (--resimulate: everything it can compare), or
+// on to the last recorded command (--resume: every command the server took, and so every one it acknowledged, is
+// applied at its recorded generation and step, after the last state if it came later).
+enum class Until { kLastMark, kLastCommand };
+
 // Re-runs `log` from its first scene, comparing every state and checkpoint, until the first difference or the
-// end; `stop_after_checkpoint` >= 0 stops right after that checkpoint (index into log.checkpoints) instead.
-// progress(steps, states) is called now and then. The session is left as the re-run ended.
-Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, long stop_after_checkpoint = -1,
+// end. progress(steps, states) is called now and then. The session is left as the re-run ended. Throws
+// std::runtime_error when a recorded command cannot be applied (refused in the re-run, a scene missing).
+Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, Until until = Until::kLastMark,
                         const std::function<void(std::uint64_t, std::uint64_t)>& progress = {});
 
 }  // namespace ladder::daemon

@@ -208,6 +208,30 @@ void fill_frame(const Session& s, std::uint64_t commands_applied, StateFrame& f)
     f.grips.push_back({g.block, g.target.x(), g.target.y(), g.hold_angle, g.angle});
 }
 
+// The final guard before a State is handed over: the name of its first non-finite number, or "" when all are
+// finite. The commands' checks and the step's watchdog should leave none; one that slips through must not reach
+// a client (a viewer that divides by it, or a controller that feeds it back, fails far from the cause).
+std::string non_finite_in(const StateFrame& f) {
+  if (!std::isfinite(f.t)) return "sim_time";
+  if (!std::isfinite(f.energy)) return "energy";
+  static constexpr const char* kPose[] = {"x", "y", "theta"};
+  for (std::size_t i = 0; i < f.poses.size(); ++i)
+    if (!std::isfinite(f.poses[i])) return "block " + std::to_string(i / 3) + "'s " + kPose[i % 3];
+  for (const ladder_msg_Grip& g : f.grips)
+    if (!std::isfinite(g.target_x) || !std::isfinite(g.target_y) || !std::isfinite(g.angle))
+      return "the grip on block " + std::to_string(g.block);
+  return {};
+}
+
+// Replaces a non-finite number by 0 and counts it, naming the field in `fields` (Stats and events are figures for
+// people and plots: a 0 there with a log line is better than a NaN that breaks every reader).
+void finite_or_zero(double& v, const char* name, std::string& fields, std::uint64_t& count) {
+  if (std::isfinite(v)) return;
+  v = 0;
+  ++count;
+  fields += fields.empty() ? name : std::string(", ") + name;
+}
+
 SceneOut scene_out(const Session& s) {
   const scene::Scene& sc = s.sim().scene();
   const model::LadderSpec& l = sc.ladder;
@@ -244,6 +268,8 @@ class Physics {
         tick_log_(!shared.config.tick_log.empty()) {
     session_.configure(sh_.config.scenes_dir, sh_.config.limits, sh_.config.rates);
     scene_generation_ = session_.generation();
+    accepted_ = session_.taken_before().accepted;  // a resumed session numbers on from its log
+    refused_ = session_.taken_before().refused;
   }
 
   void run(const std::atomic<bool>& stop);
@@ -287,6 +313,9 @@ class Physics {
   std::vector<TickRecord> ticks_;  // ticks not yet handed to the I/O thread
   double next_checkpoint_ = 0;  // [s of sim time]
   bool dirty_ = true;  // the state changed (or a command came) since the last publish; paused states publish only then
+  std::uint64_t stats_zeroed_ = 0, events_zeroed_ = 0;  // non-finite fields sent as 0 (the final guard)
+  // The sim time for an event, 0 if it is not finite.
+  double finite_time() const { return std::isfinite(session_.sim().time()) ? session_.sim().time() : 0; }
   Clock::time_point next_watchdog_{};  // when systemd's watchdog is next told that all is well
 };
 
@@ -302,6 +331,14 @@ void Physics::push_scene() {
   scene_generation_ = session_.generation();
   scene_rates_ = session_.rates();
   SceneOut out = scene_out(session_);
+  std::string bad;
+  std::uint64_t zeroed = 0;
+  for (auto [v, name] : {std::pair{&out.length, "length"}, {&out.thickness, "thickness"}, {&out.inset, "hinge_inset"},
+                         {&out.dt, "dt"}, {&out.rates.physics, "physics_rate"}, {&out.rates.publish, "publish_rate"},
+                         {&out.rates.real_time_factor, "real_time_factor"}})
+    finite_or_zero(*v, name, bad, zeroed);
+  for (double& m : out.masses) finite_or_zero(m, "a mass", bad, zeroed);
+  if (zeroed) spdlog::warn("SceneInfo: non-finite {} sent as 0", bad);  // the scene checks should leave none
   scene_options_ = out.options;
   with_outbox([&](Outbox& o) { o.scenes.push_back(std::move(out)); });
 }
@@ -338,7 +375,9 @@ void Physics::take_commands() {
     (r.accepted ? accepted_ : refused_)++;
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
-    if (r.accepted)
+    if (r.accepted && !r.reason.empty())  // accepted with a note (a reset that dropped the live settings)
+      spdlog::info("{} {} from {}: accepted: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
+    else if (r.accepted)
       spdlog::debug("{} {} from {}: accepted at t = {:.6f} s{}", to_string(c.kind), c.command_id, text_of(c.client_id), t,
                     taking_);
     else
@@ -404,7 +443,7 @@ void Physics::run_step() {
     session_.step();
   } catch (const std::runtime_error& e) {
     spdlog::error("step failed, simulation paused: {}", e.what());
-    with_outbox([&](Outbox& o) { o.events.push_back({session_.sim().time(), "solver_failure", e.what(), 0, 0}); });
+    with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", e.what(), 0, 0}); });
     debt_ = 0;
   }
   const Clock::duration took = Clock::now() - t0;
@@ -430,8 +469,8 @@ void Physics::hand_over_ticks() {
 }
 
 // Runs the steps this tick owes: real time times the real-time factor, or pending single steps while paused.
-// With a real-time factor of 0 it steps for one tick period of wall time. A backlog beyond two ticks' worth is
-// dropped rather than caught up, so an overloaded server runs slow instead of freezing.
+// With a real-time factor of 0 it steps for one tick period of wall time. A backlog beyond two ticks' worth (or one
+// step, when a step is longer) is dropped rather than caught up, so an overloaded server runs slow instead of freezing.
 void Physics::advance(double period, Clock::time_point tick_start) {
   const double dt = session_.sim().dt();
   const auto budget = tick_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period));
@@ -457,7 +496,9 @@ void Physics::advance(double period, Clock::time_point tick_start) {
     if (Clock::now() >= budget + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period)))
       break;
   }
-  debt_ = std::min(debt_, 2 * rtf * period);
+  // At most two ticks' worth, or one step: a sim.dt longer than two ticks of sim time (4 ms at 1 kHz and a real-time
+  // factor of 1) must still come due, or the simulation would never step again.
+  debt_ = std::min(debt_, std::max(2 * rtf * period, dt));
 }
 
 void Physics::collect_events() {
@@ -467,6 +508,12 @@ void Physics::collect_events() {
   for (const scene::Refusal& r : session_.sim().take_refusals())
     out.push_back({r.t, "command_refused", r.where + ": " + r.reason, 0, 0});
   if (out.empty()) return;
+  for (EventOut& e : out) {
+    std::string bad;
+    finite_or_zero(e.t, "t", bad, events_zeroed_);
+    finite_or_zero(e.energy_removed, "energy_removed", bad, events_zeroed_);
+    if (!bad.empty()) e.detail += (e.detail.empty() ? "" : "; ") + ("non-finite " + bad + " sent as 0");
+  }
   for (const EventOut& e : out)
     spdlog::info("t = {:.6f} s: {} at hinge {}{}{}", e.t, e.kind, e.hinge, e.detail.empty() ? "" : ": ", e.detail);
   with_outbox([&](Outbox& o) { o.events.insert(o.events.end(), out.begin(), out.end()); });
@@ -474,7 +521,20 @@ void Physics::collect_events() {
 
 void Physics::publish_state() {
   dirty_ = false;
-  fill_frame(session_, accepted_ + refused_, sh_.state.back());
+  StateFrame& f = sh_.state.back();
+  fill_frame(session_, accepted_ + refused_, f);
+  const std::string bad = non_finite_in(f);
+  if (!bad.empty()) {
+    // Treated as a failed step: the frame is not handed over (clients keep the last good state) and the session
+    // pauses, so that a reset restores the scene's own settings. Reported once, not at every command while paused.
+    if (session_.failed()) return;
+    session_.fail();
+    const std::string why = "the state holds a non-finite number (" + bad + "): not published; paused";
+    spdlog::error("step failed, simulation paused: {}", why);
+    with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", why, 0, 0}); });
+    debt_ = 0;
+    return;
+  }
   if (sh_.state.publish()) sh_.states_dropped.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -509,6 +569,17 @@ void Physics::publish_stats(Clock::time_point now) {
   s.states_published = sh_.states_published.load();
   s.states_dropped = sh_.states_dropped.load();
   s.events_published = sh_.events_published.load();
+  std::string bad;
+  const std::uint64_t before = stats_zeroed_;
+  for (auto [v, name] : {std::pair{&s.sim_time, "sim_time"}, {&s.window, "window"}, {&s.step_p50_us, "step_p50_us"},
+                         {&s.step_p99_us, "step_p99_us"}, {&s.step_max_us, "step_max_us"},
+                         {&s.late_p50_us, "late_p50_us"}, {&s.late_p99_us, "late_p99_us"},
+                         {&s.late_max_us, "late_max_us"}, {&s.real_time_factor, "real_time_factor"},
+                         {&s.solver_residual, "solver_residual"}, {&s.energy, "energy"},
+                         {&s.max_hinge_error, "max_hinge_error"}})
+    finite_or_zero(*v, name, bad, stats_zeroed_);
+  if (stats_zeroed_ != before)
+    spdlog::warn("Stats: non-finite {} sent as 0 ({} such fields so far)", bad, stats_zeroed_);
   with_outbox([&](Outbox& o) { o.stats.push_back(s); });
   last_stats_ = now;
   sim_at_last_stats_ = sim.time();
@@ -900,6 +971,12 @@ void Io::write_outbox() {
     copy_text(m.options, s.options);
     written(scene_w_.try_write(m), "ladder/SceneInfo");
   }
+  // A command is in the log, flushed to the file, before its ack goes out: an acknowledged command survives a
+  // kill -9 (--resume replays it).
+  if (log_) record_outbox();
+  if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)) && log_->failed_syncs() == 1)
+    spdlog::error("session log {}: writing it failed or took over 5 s; until it catches up, commands are "
+                  "acknowledged before they are in it (said once)", log_->path());
   for (const AckOut& a : out_.acks) {
     written(ack_w_.try_write(a.ack), "ladder/CommandAck");
     remember(a);
@@ -917,7 +994,6 @@ void Io::write_outbox() {
   }
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) written(stats_w_.try_write(s), "ladder/Stats");
-  if (log_) record_outbox();
   if (tick_log_) write_ticks();
   out_.ticks.clear();
   out_.commands.clear();

@@ -2,6 +2,7 @@
 
 #include "transport/dds.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
@@ -32,29 +33,58 @@ Vec2 vec(double x, double y, const char* name) {
   return {x, y};
 }
 
+// hypot, not norm(): |(1e300, 0)| is 1e300, where the sum of squares overflows to inf.
 Vec2 bounded(double x, double y, const char* name, double limit, const char* unit, const char* key) {
   const Vec2 v = vec(x, y, name);
-  if (v.norm() > limit)
-    throw std::invalid_argument(std::string(name) + " of " + number(v.norm()) + " " + unit + " is beyond the limit of " +
+  const double size = std::hypot(x, y);
+  if (size > limit)
+    throw std::invalid_argument(std::string(name) + " of " + number(size) + " " + unit + " is beyond the limit of " +
                                 number(limit) + " " + unit + " (" + key + ")");
   return v;
 }
 
 Vec2 within_reach(double x, double y, const char* name, double reach) {
   const Vec2 v = vec(x, y, name);
-  if (v.norm() > reach)
-    throw std::invalid_argument(std::string(name) + " is " + number(v.norm()) + " m from the origin, beyond the reach of " +
-                                number(reach) + " m (commands.reach)");
+  const double distance = std::hypot(x, y);
+  if (distance > reach)
+    throw std::invalid_argument(std::string(name) + " is " + number(distance) +
+                                " m from the origin, beyond the reach of " + number(reach) + " m (commands.reach)");
   return v;
 }
 
 // A point on block i: `offset` from its centre must lie inside the block (1 % slack for rounding).
 void on_block(const model::Ladder& l, int i, const Vec2& offset, const char* name) {
   const double half_diagonal = 0.5 * std::hypot(l.spec().length, l.spec().thickness);
-  if (offset.norm() > 1.01 * half_diagonal)
-    throw std::invalid_argument(std::string(name) + " is " + number(offset.norm() * 1e3) + " mm from block " +
+  const double distance = std::hypot(offset.x(), offset.y());
+  if (distance > 1.01 * half_diagonal)
+    throw std::invalid_argument(std::string(name) + " is " + number(distance * 1e3) + " mm from block " +
                                 std::to_string(i) + "'s centre, outside the block (at most " +
                                 number(half_diagonal * 1e3) + " mm)");
+}
+
+// A grip's stiffness: 0 (the default) to kMaxStiffness.
+double stiffness(double v) {
+  finite(v, "the stiffness");
+  if (!(v >= 0 && v <= kMaxStiffness))
+    throw std::invalid_argument("the stiffness must be from 0 (the default) to " + number(kMaxStiffness) +
+                                " N/m, not " + number(v));
+  return v;
+}
+
+// A grip's angle: finite and within kMaxAngle.
+double angle_in_range(double v) {
+  finite(v, "the angle");
+  if (!(std::abs(v) <= kMaxAngle))
+    throw std::invalid_argument("the angle must be from -" + number(kMaxAngle) + " to " + number(kMaxAngle) +
+                                " rad, not " + number(v));
+  return v;
+}
+
+// The turn of `angle` nearest the block's own angle (unwrapped, so several turns from 0 after tips): the grip's
+// torsional spring then turns it at most half a turn. An angle already that near is kept exactly as given.
+double nearest_turn(double angle, double block_angle) {
+  if (std::abs(angle - block_angle) <= M_PI) return angle;
+  return block_angle + std::remainder(angle - block_angle, 2 * M_PI);
 }
 
 scene::TimedCommand timed(const char* command) {
@@ -87,6 +117,7 @@ const char* to_string(ladder_msg_CommandKind kind) {
 
 Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates)
     : sim_(std::make_unique<scene::Simulation>(scene)),
+      base_(scene),
       scenes_dir_(std::move(scenes_dir)),
       limits_(limits),
       rates_(rates) {}
@@ -94,6 +125,7 @@ Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limit
 void Session::start(const scene::Scene& scene) {
   sim_ = std::make_unique<scene::Simulation>(scene);
   pending_steps_ = 0;
+  failed_ = false;
   ++generation_;
 }
 
@@ -103,8 +135,21 @@ void Session::step() {
   } catch (const std::runtime_error&) {
     paused_ = true;
     pending_steps_ = 0;
+    failed_ = true;
     throw;
   }
+  failed_ = false;
+}
+
+Outcome Session::reset() {
+  if (!failed_) {
+    start(sim_->scene());  // the live settings kept
+    return {};
+  }
+  const bool changed = scene::live_settings(base_) != scene::live_settings(sim_->scene());
+  start(base_);
+  if (!changed) return {true, "the last step failed: the scene restarted (its settings were unchanged)"};
+  return {true, "the last step failed: the scene restarted with its own settings (the live settings dropped)"};
 }
 
 Outcome Session::apply(const ladder_msg_Command& c) {
@@ -146,23 +191,26 @@ Outcome Session::apply(const ladder_msg_Command& c) {
       case ladder_msg_GRAB: {
         model::Ladder::Grip g;
         g.local = c.has_point ? vec(c.c, c.d, "the point") : Vec2::Zero();
-        finite(c.e, "the stiffness");
-        g.stiffness = c.e;
+        g.stiffness = stiffness(c.e);
+        const double angle = c.has_angle ? angle_in_range(c.f) : 0;
         l.check_block(c.block);
         g.block = c.block;
         on_block(l, c.block, g.local, "the point");
         g.target = c.has_target ? within_reach(c.a, c.b, "the target", limits_.reach)
                                 : l.block_centre(c.block) + l.world().part_rotation(c.block) * g.local;
-        if (c.has_angle) finite(c.f, "the angle");
         g.hold_angle = c.has_angle;
-        g.angle = c.f;
+        // Without an angle, f is not read at all: whatever a client left there (NaN too) must not reach the State.
+        g.angle = c.has_angle ? nearest_turn(angle, l.block_angle(c.block)) : 0;
         l.grab(g);
         break;
       }
       case ladder_msg_DRAG: {
         const Vec2 target = within_reach(c.a, c.b, "the target", limits_.reach);
-        if (c.has_angle) finite(c.f, "the angle");
-        l.drag(c.block, target, c.has_angle ? &c.f : nullptr);
+        double angle = c.has_angle ? angle_in_range(c.f) : 0;
+        const auto& grips = l.grips();
+        const bool grabbed = std::any_of(grips.begin(), grips.end(), [&](const auto& g) { return g.block == c.block; });
+        if (grabbed && c.has_angle) angle = nearest_turn(angle, l.block_angle(c.block));
+        l.drag(c.block, target, c.has_angle ? &angle : nullptr);  // refuses a block that is not grabbed
         break;
       }
       case ladder_msg_RELEASE:
@@ -192,8 +240,7 @@ Outcome Session::apply(const ladder_msg_Command& c) {
         pending_steps_ += c.count;
         break;
       case ladder_msg_RESET:
-        start(sim_->scene());
-        break;
+        return reset();
       case ladder_msg_SET_PARAM:
         return set_param(text_of(c.text));
       case ladder_msg_LOAD_SCENE:
@@ -252,13 +299,14 @@ Outcome Session::set_param(const std::string& setting) {
     const double v = std::strtod(text.c_str(), &end);
     const bool is_number = !text.empty() && end == text.c_str() + text.size() && std::isfinite(v);
     if (key == "server.real_time_factor") {
-      if (!is_number || v < 0 || v > 1000)
-        return {false, setting + ": server.real_time_factor must be a number from 0 (as fast as possible) to 1000"};
+      if (!is_number || !(v == 0 || (v >= kMinRealTimeFactor && v <= kMaxRealTimeFactor)))
+        return {false, setting + ": server.real_time_factor must be a number from " + number(kMinRealTimeFactor) +
+                           " to " + number(kMaxRealTimeFactor) + ", or 0 (as fast as possible)"};
       rates_.real_time_factor = v;
     } else if (key == "server.publish_rate") {
-      if (!is_number || v <= 0 || v > rates_.physics)
-        return {false, setting + ": server.publish_rate must be a number > 0 and at most the physics rate (" +
-                           number(rates_.physics) + " Hz)"};
+      if (!is_number || !(v >= kMinPublishRate && v <= rates_.physics))
+        return {false, setting + ": server.publish_rate must be a number from " + number(kMinPublishRate) +
+                           " Hz to the physics rate (" + number(rates_.physics) + " Hz)"};
       rates_.publish = v;
     } else if (key == "server.physics_rate") {
       return {false, setting + ": server.physics_rate cannot change while the server runs; set it in ladderd.toml"};
@@ -290,7 +338,9 @@ Outcome Session::load(const std::string& name) {
     return {false, "no scene '" + name + "' in " + scenes_dir_ + " (available: " + available + ")"};
   }
   try {
-    start(scene::load_scene(path.string()));
+    const scene::Scene scene = scene::load_scene(path.string());
+    start(scene);
+    base_ = scene;
   } catch (const scene::SceneError& e) {
     return {false, e.what()};
   }

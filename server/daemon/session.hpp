@@ -24,6 +24,18 @@ struct Limits {
   std::uint32_t max_step_count = 100'000;  // one step command
 };
 
+// The bounds of the rates, for `set` as for ladderd.toml and the command line. Below them the server would stop
+// publishing (at 1e-300 Hz the next state is due in 1e300 s) or the simulation would freeze (a real-time factor of
+// 1e-300 owes one step every 1e297 s). 1 Hz keeps a client's view of a running ladder at most a second old.
+constexpr double kMinPublishRate = 1;        // [Hz]
+constexpr double kMinRealTimeFactor = 0.01;  // besides 0 (as fast as possible): 10 ms of sim time per second
+constexpr double kMaxRealTimeFactor = 1000;
+// The largest grab stiffness and angle. A hand is softer than 1e6 N/m (the grip's frequency is capped at 0.2/dt in
+// any case); an angle is an orientation, wrapped to within half a turn of the block's own (a hand turns a block
+// the short way), and beyond 1000 rad (160 turns) a value is a mistake, not a turn.
+constexpr double kMaxStiffness = 1e6;  // [N/m]
+constexpr double kMaxAngle = 1000;     // [rad]
+
 // What the server's loop runs at; the live keys server.real_time_factor and server.publish_rate change it.
 struct Rates {
   double physics = 1000;          // ticks per wall second
@@ -44,13 +56,24 @@ class Session {
   Outcome apply(const ladder_msg_Command& c);
 
   // Runs one physics step (the caller decides when: real-time pacing is the loop's job).
-  // Throws std::runtime_error when the step fails (the watchdog gave up); the session is then paused.
+  // Throws std::runtime_error when the step fails (the watchdog gave up); the session is then paused at the last
+  // good state, and a `reset` restores the scene's own settings (see failed()).
   void step();
+  // The last step failed (until a step succeeds, or a reset or load). A reset then starts the scene with the
+  // settings of its file (or text) instead of the live settings, which may be what made it fail.
+  bool failed() const { return failed_; }
   bool paused() const { return paused_; }
   // Steps ordered by a step command and not yet taken (they run while paused).
   std::uint64_t pending_steps() const { return pending_steps_; }
   void take_pending_step() { --pending_steps_; }
   void pause() { paused_ = true; }
+  // Marks the session failed as a failed step does (paused; a reset restores the scene's settings): for a state
+  // that the server finds non-finite after a step that passed.
+  void fail() {
+    paused_ = true;
+    pending_steps_ = 0;
+    failed_ = true;
+  }
 
   scene::Simulation& sim() { return *sim_; }
   const scene::Simulation& sim() const { return *sim_; }
@@ -62,23 +85,38 @@ class Session {
     scenes_dir_ = std::move(scenes_dir), limits_ = limits, rates_ = rates;
   }
   // Starts `scene` as a load does (a replayed log brings its own scene text rather than a file name).
-  void restart(const scene::Scene& scene) { start(scene); }
+  void restart(const scene::Scene& scene) {
+    start(scene);
+    base_ = scene;
+  }
   // FNV-1a over the bits of the complete dynamic state: every body's position, angle and velocities, the time,
   // the user forces, the hinges and the grips. Equal hashes mean (up to a 2^-64 chance) identical states.
   std::uint64_t state_hash() const;
+  // Commands taken before this server (a resumed log's), accepted and refused: the server numbers its commands on
+  // from them, so that command_seq and State.commands_applied go on where the log left off.
+  struct Taken {
+    std::uint64_t accepted = 0, refused = 0;
+  };
+  const Taken& taken_before() const { return taken_before_; }
+  void set_taken_before(Taken t) { taken_before_ = t; }
 
  private:
   Outcome set_param(const std::string& setting);
+  // Back to the scene's start: with the live settings, unless the last step failed (then with the scene's own).
+  Outcome reset();
   Outcome load(const std::string& name);
   void start(const scene::Scene& scene);
 
   std::unique_ptr<scene::Simulation> sim_;
+  scene::Scene base_;  // the scene as loaded, before any live setting: what a reset after a failure starts
+  bool failed_ = false;
   std::string scenes_dir_;
   Limits limits_;
   Rates rates_;
   bool paused_ = false;
   std::uint64_t pending_steps_ = 0;
   std::uint32_t generation_ = 0;
+  Taken taken_before_;
 };
 
 // The command kind's name as users type it ("tip", "break", "set", ...).

@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -38,6 +39,14 @@ bool to_journal() {
 void setup_logging(const DaemonConfig& config) {
   std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
   if (!config.log_file.empty()) {
+    // spdlog's file sink makes the missing folders on its way: a typo in the path would log to a new tree nobody
+    // looks at. The folder must exist.
+    namespace fs = std::filesystem;
+    const fs::path parent = fs::path(config.log_file).parent_path();
+    std::error_code ec;
+    if (!parent.empty() && !fs::is_directory(parent, ec))
+      throw std::runtime_error("cannot open the log file '" + config.log_file + "': its folder '" + parent.string() +
+                               "' does not exist");
     try {
       sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(config.log_file));
     } catch (const spdlog::spdlog_ex& e) {
@@ -67,10 +76,10 @@ std::string find_scene(const std::string& scene, const std::string& scenes_dir) 
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::is_regular_file(scene, ec)) return scene;
-  if (scene.find('/') == std::string::npos && !scene.starts_with(".")) {
-    const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
-    if (fs::is_regular_file(named, ec)) return named.string();
-  }
+  if (scene.find('/') != std::string::npos || scene.starts_with("."))
+    throw std::runtime_error("--scene " + scene + ": no such file");
+  const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
+  if (fs::is_regular_file(named, ec)) return named.string();
   std::string available;
   for (const auto& entry : fs::directory_iterator(scenes_dir, ec))
     if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
@@ -98,15 +107,20 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
   const SessionLog log = read_session_log(path);
   if (!log.damage.empty()) spdlog::warn("{}: {}; resuming from what came before", path, log.damage);
   if (log.checkpoints.empty()) throw std::runtime_error(path + ": no checkpoint to resume from");
+  // To the end of what was recorded: the last checkpoint, the states after it (checked), and every command after
+  // it, so that each command the killed server acknowledged (logged before its ack went out) is applied again.
   std::unique_ptr<Session> session;
-  const long last = static_cast<long>(log.checkpoints.size()) - 1;
-  const Resimulation r = resimulate(log, session, last);
+  const Resimulation r = resimulate(log, session, Until::kLastCommand);
   if (!r.identical) throw std::runtime_error(path + ": the re-run differs from the log: " + r.difference);
   session->pause();
   session->sim().take_events();  // they happened before; the log has them
   session->sim().take_refusals();
-  spdlog::info("resumed from {}: checkpoint {} at t = {:.6f} s (step {}), {} states checked on the way; paused",
-               path, last, session->sim().time(), session->sim().steps(), r.states);
+  const std::uint64_t refused = std::min(r.refused, r.last_command_seq);
+  session->set_taken_before({r.last_command_seq - refused, refused});
+  spdlog::info("resumed from {} at t = {:.6f} s (generation {}, step {}, {} commands taken) after replaying {} "
+               "commands past the last checkpoint; {} states and {} checkpoints checked on the way; paused",
+               path, session->sim().time(), session->generation(), session->sim().steps(), r.last_command_seq,
+               r.commands_after_checkpoint, r.states, r.checkpoints);
   return session;
 }
 
@@ -124,7 +138,7 @@ int run_resimulation(const std::string& path, bool progress) {
   std::unique_ptr<Session> session;
   Resimulation r;
   try {
-    r = resimulate(log, session, -1, [&](std::uint64_t steps, std::uint64_t states) {
+    r = resimulate(log, session, Until::kLastMark, [&](std::uint64_t steps, std::uint64_t states) {
       if (progress) spdlog::info("... {} steps, {} states identical so far", steps, states);
     });
   } catch (const std::exception& e) {

@@ -25,6 +25,10 @@ using core::Vec2;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxBlocks = 1'000'000;  // about 1 GB of memory; issue 6 tests up to this size
+// The bounds below keep every accepted live setting (also from a scene file) within what a step can take; the
+// figures were measured on the shipped scenes (docs/scenes.md gives each bound's reason).
+constexpr double kMaxGravity = 1000;     // [m/s^2] about 100 g; 1e4 still steps, 1e308 overflows the first step
+constexpr double kMinSubstep = 1e-7;     // [s] the smallest sim.dt: sim.dt / sim.substeps may not go below it
 
 // ---------------------------------------------------------------------------------------------------------------
 // The schema: every documented key with its type and valid range. keys_help() prints it and the reader takes each
@@ -80,13 +84,16 @@ constexpr std::array kKeys{
            .help = "weld moment above which a lock lets go [N m]"},
     KeyDef{.name = "ladder.capture_distance", .kind = Kind::Number, .range = at_least(0),
            .help = "farthest apart two corners may be for a join [m]"},
-    KeyDef{.name = "initial.kick_omega", .kind = Kind::Number, .range = kAnyNumber,
+    // A radian per 1 ms step at 1000 rad/s (extremes_test folds through the singular configuration so); at 1e4 the
+    // first steps fail, and 1e300 made the first state non-finite.
+    KeyDef{.name = "initial.kick_omega", .kind = Kind::Number, .range = between(-1000, 1000),
            .help = "initial angular velocity of block 1 about its top hinge [rad/s]"},
     KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = kAnyNumber,
            .help = "initial rotation of the whole ladder about its top-left corner [rad]"},
     KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(1e-7, 0.1), .help = "time step [s]"},
     KeyDef{.name = "sim.substeps", .kind = Kind::Integer, .range = between(1, 1000),
-           .help = "steps of sim.dt / sim.substeps taken per step of sim.dt (the server's tick)"},
+           .help = "steps of sim.dt / sim.substeps taken per step of sim.dt (the server's tick)",
+           .range_text = ">= 1 and <= 1000, and sim.dt / sim.substeps >= 1e-07 s"},
     KeyDef{.name = "sim.accuracy", .kind = Kind::Choice, .choices = "fast|balanced|accurate",
            .help = "preset for sim.integrator, sim.substeps, sim.stabilization and solver.*; such a key given "
                    "beside it, or by --set over a file's preset, wins (docs/tradeoff.md)"},
@@ -98,18 +105,23 @@ constexpr std::array kKeys{
            .help = "cover each step with sub-steps chosen by error control (step doubling) to sim.error_tolerance"},
     KeyDef{.name = "sim.error_tolerance", .kind = Kind::Number, .range = between(1e-12, 1e-2),
            .help = "largest estimated error of an adaptive sub-step, a displacement [m]"},
-    KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]"},
+    KeyDef{.name = "sim.gravity", .kind = Kind::Pair, .help = "gravitational acceleration [m/s^2]",
+           .range_text = "|g| <= 1000"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
            .help = "hinge constraint solver"},
     KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = {0, 1e-6, true, false},
            .help = "hinge position error the solver drives below [m]"},
     KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "iterations per nonlinear solve"},
-    KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = at_least(0),
-           .help = "drag force -c m v on each block [1/s]"},
-    KeyDef{.name = "damping.angular", .kind = Kind::Number, .range = at_least(0),
-           .help = "drag torque -c I w on each block [1/s]"},
-    KeyDef{.name = "damping.hinge", .kind = Kind::Number, .range = at_least(0),
+    // The drags are explicit forces: at 1 ms a block stops within a step already at 1000 /s (3e5 fails the step),
+    // and hinge friction above 0.4 N m s fails it for the shipped 25 g blocks.
+    KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = between(0, 1000),
+           .help = "drag force -c m v on each block [1/s]",
+           .range_text = ">= 0 and <= 1000, and <= 1 / (sim.dt / sim.substeps)"},
+    KeyDef{.name = "damping.angular", .kind = Kind::Number, .range = between(0, 1000),
+           .help = "drag torque -c I w on each block [1/s]",
+           .range_text = ">= 0 and <= 1000, and <= 1 / (sim.dt / sim.substeps)"},
+    KeyDef{.name = "damping.hinge", .kind = Kind::Number, .range = between(0, 0.1),
            .help = "viscous hinge torque -c (w_b - w_a) [N m s]"},
     KeyDef{.name = "timeline.t", .kind = Kind::Number, .range = at_least(0),
            .help = "time the command is applied, required [s]"},
@@ -461,6 +473,7 @@ class Reader {
     return t ? t->get(leaf_of(key)) : nullptr;
   }
   bool overridden(std::string_view key) const { return origins_.find(key) != origins_.end(); }
+  std::string_view source() const { return source_; }
   Site site(std::string_view key) const {
     const auto it = origins_.find(key);
     return {source_, it == origins_.end() ? std::string_view() : std::string_view(it->second), std::string(key)};
@@ -589,6 +602,54 @@ std::string accuracy_of(const Scene& s) {
 
 namespace {
 
+// |g| beyond kMaxGravity is refused: at 1e308 the first step's velocities overflow, and every step fails.
+void check_gravity(const Reader& r, const Vec2& g) {
+  const toml::node* n = r.find("sim.gravity");
+  if (!n || g.norm() <= kMaxGravity) return;
+  r.site("sim.gravity").fail(*n, "sim.gravity must have |g| <= " + format_number(kMaxGravity) +
+                                     " m/s^2, about 100 g (got [" + format_number(g.x()) + ", " +
+                                     format_number(g.y()) + "])");
+}
+
+// A step of sim.dt runs sim.substeps steps in the server's tick: a sub-step below the smallest sim.dt would make one
+// tick's step take up to 1000 times as long as the finest time step allowed, for no gain in accuracy.
+void check_substep(const Reader& r, const Scene& s) {
+  if (s.dt / s.substeps >= kMinSubstep * (1 - 1e-12)) return;  // 1e-4 / 1000 is 1e-7 up to rounding
+  // Blame the key that the user just gave (a --set, or a live setting), else the file's substeps, dt or preset.
+  std::string_view key;
+  for (const std::string_view k : {"sim.substeps", "sim.dt", "sim.accuracy"}) {
+    if (!r.find(k)) continue;
+    if (key.empty() || (r.overridden(k) && !r.overridden(key))) key = k;
+  }
+  const toml::node* n = r.find(key);
+  const std::string message = "sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got " +
+                              format_number(s.dt) + " / " + std::to_string(s.substeps) + " = " +
+                              format_number(s.dt / s.substeps) + " s)";
+  if (!n) throw SceneError(std::string(r.source()) + ": " + message);  // cannot happen: one of the three set it
+  r.site(key).fail(*n, message);
+}
+
+// The drags are explicit: a step may take away at most a block's whole velocity, c dt / substeps <= 1 (measured:
+// every integrator steps the classic scene at c h = 1 for dt 0.1 and 0.01 s; at c h = 100 all fail).
+void check_drag(const Reader& r, const Scene& s) {
+  const double h = s.dt / s.substeps;
+  for (const auto& [key, c] : {std::pair<std::string_view, double>{"damping.linear", s.options.linear_damping},
+                               {"damping.angular", s.options.angular_damping}}) {
+    if (c * h <= 1 + 1e-12) continue;  // 1000 /s at 1 ms is 1 up to rounding
+    const std::string message = std::string(key) + " must be <= 1 / (sim.dt / sim.substeps) = " +
+                                format_number(1 / h) + " /s, so that one step takes at most a block's whole " +
+                                "velocity (got " + format_number(c) + " at sim.dt = " + format_number(s.dt) +
+                                " s, sim.substeps = " + std::to_string(s.substeps) + ")";
+    // Blame the drag when it was given here, else the step that was (a live `set sim.dt` under a strong drag).
+    std::string_view blame = key;
+    if (!r.find(key) || (!r.overridden(key) && (r.overridden("sim.dt") || r.overridden("sim.substeps"))))
+      for (const std::string_view k : {"sim.dt", "sim.substeps", "sim.accuracy"})
+        if (r.find(k)) blame = k;
+    if (const toml::node* n = r.find(blame)) r.site(blame).fail(*n, message);
+    throw SceneError(std::string(r.source()) + ": " + message);  // cannot happen: one of them was given
+  }
+}
+
 void read_options(const Reader& r, Scene& s) {
   core::Options& o = s.options;
   r.get("sim.dt", s.dt);
@@ -620,6 +681,9 @@ void read_options(const Reader& r, Scene& s) {
   r.get("damping.linear", o.linear_damping);
   r.get("damping.angular", o.angular_damping);
   r.get("damping.hinge", o.hinge_friction);
+  check_gravity(r, o.gravity);
+  check_substep(r, s);
+  check_drag(r, s);
 }
 
 const CommandDef& command_def(std::string_view name) {
@@ -799,7 +863,13 @@ std::string live_settings(const Scene& s) {
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
-  return parse_scene(read_file(path), path, overrides);
+  const std::string text = read_file(path);
+  // An empty file (or one of comments only) would be the defaults, which is almost always a mistake: the wrong file,
+  // or one cut short. (parse_scene takes "" for the built-in scene and tests: it is only a file that must say so.)
+  if (parse_document(text, path).empty())
+    throw SceneError(path + ":1:1: the scene file is empty; a scene needs at least one table, e.g. [ladder] with "
+                            "blocks = 6 (docs/scenes.md lists every key)");
+  return parse_scene(text, path, overrides);
 }
 
 std::string keys_help() {

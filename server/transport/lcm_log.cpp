@@ -36,9 +36,21 @@ void LogWriter::push(Item item, bool droppable) {
       return;
     }
     queued_bytes_ += item.data.size();
+    ++queued_total_;
     queue_.push_back(std::move(item));
   }
   wake_.notify_one();
+}
+
+bool LogWriter::sync(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  const std::uint64_t target = queued_total_;
+  const auto caught_up = [&] { return flushed_total_ >= target; };
+  // The writer wakes as soon as something is queued (push notifies it), so this waits for one write and flush.
+  const bool done = flushed_total_ < behind_until_ ? caught_up() : flushed_.wait_for(lock, timeout, caught_up);
+  if (!done) behind_until_ = target;
+  if (!done || failed_) failed_syncs_.fetch_add(1);
+  return done && !failed_;
 }
 
 // Writes in batches and flushes after each, so that a crash loses at most the batch being written; LCM's reader
@@ -54,17 +66,24 @@ void LogWriter::run() {
       queued_bytes_ = 0;
       closing = closing_;
     }
+    bool ok = true;
     for (Item& item : batch) {
       lcm::LogEvent e{};
       e.timestamp = item.utime;
       e.channel = item.channel;
       e.datalen = static_cast<int32_t>(item.data.size());
       e.data = item.data.data();
-      file_.writeEvent(&e);
+      ok = file_.writeEvent(&e) == 0 && ok;
     }
     written_.fetch_add(batch.size());
+    ok = std::fflush(file_.getFilePtr()) == 0 && ok;
+    {
+      std::lock_guard lock(mutex_);
+      flushed_total_ += batch.size();
+      failed_ = failed_ || !ok;
+    }
+    flushed_.notify_all();
     batch.clear();
-    std::fflush(file_.getFilePtr());
     if (closing) break;
   }
   fsync(fileno(file_.getFilePtr()));
@@ -74,8 +93,22 @@ LogReader::LogReader(const std::string& path) : path_(path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot open the log file '" + path + "'");
   bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  check_start();
+}
+
+LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name)
+    : path_(std::move(name)), bytes_(std::move(bytes)) {
+  check_start();
+}
+
+void LogReader::check_start() const {
   if (bytes_.size() < 4 || bytes_[0] != 0xED || bytes_[1] != 0xA1 || bytes_[2] != 0xDA || bytes_[3] != 0x01)
-    throw std::runtime_error("'" + path + "' is not an LCM event log (it does not start with LCM's sync word)");
+    throw std::runtime_error("'" + path_ + "' is not an LCM event log (it does not start with LCM's sync word)");
+}
+
+void LogReader::refuse(const Event& e, const std::string& type, const std::string& why) const {
+  throw std::runtime_error(path_ + ": event " + std::to_string(e.number) + " (" + e.channel + " at byte " +
+                           std::to_string(e.offset) + ") is not a valid " + type + ": " + why);
 }
 
 namespace {
@@ -100,6 +133,8 @@ std::optional<LogReader::Event> LogReader::next() {
   if (channel_len == 0 || channel_len >= 1000 || data_len >= 0x80000000u) return stop("an impossible event length");
   if (bytes_.size() - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
   Event e;
+  e.number = count_ + 1;
+  e.offset = at_;
   e.utime = static_cast<std::int64_t>(big_endian(h + 12, 8));
   const auto* body = h + kHeader;
   e.channel.assign(reinterpret_cast<const char*>(body), channel_len);

@@ -2,9 +2,12 @@
 // never blocks its callers, and a reader that stops cleanly at a damaged or cut-off end.
 #pragma once
 
+#include "transport/lcm_decode.hpp"
+
 #include <lcm/lcm-cpp.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -48,6 +51,13 @@ class LogWriter {
   void write_bytes(const std::string& channel, std::int64_t utime, std::vector<std::uint8_t> data, bool droppable) {
     push({channel, utime, std::move(data)}, droppable);
   }
+  // Waits until everything queued so far is written and flushed to the file (in the kernel's hands: it survives
+  // a kill -9 of this process, not a power cut). False when that took longer than `timeout` or writing failed;
+  // then, until the writer has caught up with what was queued at that time, it returns false without waiting (a
+  // stalled disk costs its callers one timeout, not one per call). ladderd calls it before it acknowledges
+  // commands, so that every acknowledged command is in the log.
+  bool sync(std::chrono::milliseconds timeout);
+  std::uint64_t failed_syncs() const { return failed_syncs_.load(); }
   std::uint64_t written() const { return written_.load(); }
   std::uint64_t dropped() const { return dropped_.load(); }
   const std::string& path() const { return path_; }
@@ -69,6 +79,11 @@ class LogWriter {
   std::condition_variable wake_;
   std::deque<Item> queue_;
   std::size_t queued_bytes_ = 0;
+  std::uint64_t queued_total_ = 0, flushed_total_ = 0;  // items ever queued, and ever written and flushed
+  std::condition_variable flushed_;                     // flushed_total_ grew
+  bool failed_ = false;                                 // a write or flush failed
+  std::uint64_t behind_until_ = 0;                      // a sync timed out: do not wait until this much is flushed
+  std::atomic<std::uint64_t> failed_syncs_{0};
   bool closing_ = false;
   std::atomic<std::uint64_t> written_{0}, dropped_{0};
   std::thread thread_;
@@ -76,38 +91,41 @@ class LogWriter {
 
 // Reads the LCM log format itself (a sync word, event number, timestamp, channel and data lengths, then both)
 // rather than through liblcm, so that a damaged file is found and reported, never trusted: a length beyond the end
-// of the file or a missing sync word ends the log there, and damage() says where.
+// of the file or a missing sync word ends the log there, and damage() says where. Events are decoded by our own
+// decoders (lcm_decode.hpp), which check every length before they allocate.
 class LogReader {
  public:
   struct Event {
     std::string channel;
     std::int64_t utime = 0;
     std::vector<std::uint8_t> data;
+    std::uint64_t number = 0;  // 1 for the first event of the log
+    std::size_t offset = 0;    // where it starts in the file [bytes]
   };
   // Throws std::runtime_error naming the path when it cannot be opened or is not an LCM log.
   explicit LogReader(const std::string& path);
+  // The same on bytes in memory (a fuzzer's input); `name` stands for the path in messages.
+  LogReader(std::vector<std::uint8_t> bytes, std::string name);
   // The next event, or nothing at the end of the log or where it is damaged or cut off.
   std::optional<Event> next();
   // Empty, or what was wrong where reading stopped ("cut off in event 12 at byte 4096", ...).
   const std::string& damage() const { return damage_; }
-  // Decodes an event's data; throws std::runtime_error naming the event when it does not decode.
+  // Decodes an event's data; throws std::runtime_error naming the file, the event and what is wrong when it does
+  // not decode or holds an impossible value.
   template <class T>
   T decode(const Event& e) const {
     T m;
-    int used = -1;
-    try {
-      used = m.decode(e.data.data(), 0, static_cast<int>(e.data.size()));
-    } catch (const std::exception&) {  // lcm-gen's decoders throw on some bad lengths (a string of length 0)
-    }
-    if (used < 0)
-      throw std::runtime_error(path_ + ": event " + std::to_string(count_) + " on " + e.channel +
-                               " does not decode as " + T::getTypeName() + " (a damaged log)");
+    if (const std::string why = decode_lcm(e.data, m); !why.empty()) refuse(e, T::getTypeName(), why);
     return m;
   }
+  // Throws the std::runtime_error that decode() throws: "<path>: event 12 (LADDER_STATE at byte 4096): <why>".
+  [[noreturn]] void refuse(const Event& e, const std::string& type, const std::string& why) const;
   std::uint64_t count() const { return count_; }
   const std::string& path() const { return path_; }
 
  private:
+  void check_start() const;
+
   std::string path_;
   std::vector<std::uint8_t> bytes_;  // the whole file (logs are read once, front to back)
   std::size_t at_ = 0;

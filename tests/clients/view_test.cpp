@@ -4,6 +4,7 @@
 #include "ascii.hpp"
 #include "client.hpp"
 #include "draw.hpp"
+#include "netns.hpp"
 #include "process.hpp"
 #include "transport/dds.hpp"
 #include "transport/topics.hpp"
@@ -549,83 +550,22 @@ TEST_F(View, WindowWaitsForTheSceneInfoOfAStateThatCameFirst) {
 
 // ---------------------------------------------------------------------------------------------------------------
 // A remote viewer: ladderd in one network namespace, ladder-view and ladderctl in another, joined by a veth pair
-// with an address on each end, each side's Cyclone configuration naming its interface and the other's address.
-
-std::string ip_binary() {
-  for (const char* p : {"/usr/sbin/ip", "/sbin/ip", "/usr/bin/ip", "/bin/ip"})
-    if (access(p, X_OK) == 0) return p;
-  return "ip";
-}
-
-// Two namespaces and the veth pair between them; deleted with the object.
-class Netns {
- public:
-  explicit Netns(int tag)
-      : a_("lv-a-" + std::to_string(tag)), b_("lv-b-" + std::to_string(tag)),
-        va_("lva" + std::to_string(tag % 100000)), vb_("lvb" + std::to_string(tag % 100000)),
-        addr_a_("10.231." + std::to_string(tag % 250) + ".1"), addr_b_("10.231." + std::to_string(tag % 250) + ".2") {}
-  ~Netns() {
-    for (const std::string& ns : created_) shell(ip_binary() + " netns del " + ns);
-  }
-  // Empty when it worked, else what failed.
-  std::string create() {
-    const std::string ip = ip_binary();
-    for (const std::string& ns : {a_, b_}) {
-      const Result r = shell(ip + " netns add " + ns);
-      if (r.code != 0) return "ip netns add " + ns + ": " + r.output;
-      created_.push_back(ns);
-    }
-    const std::vector<std::string> steps = {
-        "link add " + va_ + " netns " + a_ + " type veth peer name " + vb_ + " netns " + b_,
-        "-n " + a_ + " addr add " + addr_a_ + "/24 dev " + va_,
-        "-n " + b_ + " addr add " + addr_b_ + "/24 dev " + vb_,
-        "-n " + a_ + " link set " + va_ + " up",
-        "-n " + b_ + " link set " + vb_ + " up",
-        "-n " + a_ + " link set lo up",
-        "-n " + b_ + " link set lo up"};
-    for (const std::string& step : steps)
-      if (const Result r = shell(ip + " " + step); r.code != 0) return "ip " + step + ": " + r.output;
-    return {};
-  }
-  // A Cyclone configuration for one side: its veth, unicast discovery of the other side's address.
-  static std::string cyclone_xml(const std::string& interface, const std::string& peer) {
-    return "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=\"any\"><General><Interfaces>"
-           "<NetworkInterface name=\"" + interface + "\"/></Interfaces><AllowMulticast>false</AllowMulticast>"
-           "</General><Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>32"
-           "</MaxAutoParticipantIndex><Peers><Peer address=\"" + peer + "\"/></Peers></Discovery></Domain>"
-           "</CycloneDDS>";
-  }
-  // The command line prefix that runs a program in namespace a (server side) or b (client side).
-  std::string in_a(const std::string& xml_path) const { return in(a_, xml_path); }
-  std::string in_b(const std::string& xml_path) const { return in(b_, xml_path); }
-  const std::string& a_ns() const { return a_; }
-  const std::string& va() const { return va_; }
-  const std::string& vb() const { return vb_; }
-  const std::string& addr_a() const { return addr_a_; }
-  const std::string& addr_b() const { return addr_b_; }
-
- private:
-  std::string in(const std::string& ns, const std::string& xml_path) const {
-    return ip_binary() + " netns exec " + ns + " env CYCLONEDDS_URI=file://" + xml_path + " ";
-  }
-  std::string a_, b_, va_, vb_, addr_a_, addr_b_;
-  std::vector<std::string> created_;
-};
+// with an address on each end, each side's Cyclone configuration naming its interface and the other's address
+// (tests/daemon/netns.hpp). Skipped, saying why, when not root or when the kernel refuses a namespace.
 
 TEST_F(View, RemoteViewerInAnotherNetworkNamespace) {
-  Netns net(getpid());
-  if (const std::string why = net.create(); !why.empty())
-    GTEST_SKIP() << "cannot create network namespaces here (needs root or CAP_NET_ADMIN): " << why;
+  NetnsPair net;  // namespaces that go with this process, however it ends: nothing left mounted in /run/netns
+  if (const auto why = net.create()) GTEST_SKIP() << *why;
   const std::string xml_a = out_ + "-a.xml", xml_b = out_ + "-b.xml";
-  std::ofstream(xml_a) << Netns::cyclone_xml(net.va(), net.addr_b());
-  std::ofstream(xml_b) << Netns::cyclone_xml(net.vb(), net.addr_a());
+  std::ofstream(xml_a) << NetnsPair::xml_a();
+  std::ofstream(xml_b) << NetnsPair::xml_b();
   // The remote server runs the same built-in scene as this test's local one, so both rest in the same state.
-  Process remote({ip_binary(), "netns", "exec", net.a_ns(), "env", "CYCLONEDDS_URI=file://" + xml_a,
-                  kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--log-level",
-                  "debug"},
+  Process remote(net.run_in('a', "file://" + xml_a,
+                            {kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_,
+                             "--log-level", "debug"}),
                  out_ + "-remote.log");
   const client::State rest = pause();
-  const std::string where_b = net.in_b(xml_b);
+  const std::string where_b = net.shell_prefix('b', "file://" + xml_b);
   const Result a = shell(where_b + kViewer + where() + " --timeout 30 --png " + out_ + "-remote.png --size 500x700");
   ASSERT_EQ(a.code, 0) << a.output << "\nremote server:\n" << remote.log();
   const auto cam = camera_in(a.output, 500, 700);

@@ -127,7 +127,7 @@ TEST_F(Offline, BadSceneIsRefusedWithItsPosition) {
 TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
   const std::string scene = " --scene " + kScenes + "classic.toml";
   struct Case { std::string args, words; };
-  for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "File does not exist"},
+  for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "--scene /no/such.toml: no such file\n"},
                         Case{"--offline" + scene + " --duration ten", "--duration"},
                         Case{"--offline" + scene, "--duration"},
                         Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
@@ -136,7 +136,7 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
-                        Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be > 0 and at most"},
+                        Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be >= 1 and at most"},
                         Case{scene + " --sim-id 'a b'", "server.sim_id 'a b' may hold only"},
                         Case{scene + " --set ladder.blocks=0", "ladder.blocks"},
                         Case{scene + " --domain 999", "--domain"},
@@ -166,7 +166,7 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
                         Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
-                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be > 0 and at most"},
+                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be >= 1 and at most"},
                         Case{"[server\n", ":1:8: "}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
     const Result r = ladderd("--config " + path("ladderd.toml"));

@@ -12,9 +12,11 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <filesystem>
 #include <fstream>
 #include <cstring>
+#include <functional>
 #include <random>
 
 namespace ladder::test {
@@ -151,7 +153,8 @@ TEST_F(Record, ALiveSettingThatChangesNothingSendsNoSceneInfo) {
 }
 
 // kill -9 in the middle: the log reads back up to its last complete event, re-simulates identically, and
-// --resume serves from its last checkpoint (paused, at exactly that step), then runs on.
+// --resume serves from its last recorded state (past the last checkpoint; paused, at exactly that step and with
+// exactly its coordinates), then runs on.
 TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
   start({"--record", log_});
   accepted(cmd::tip());
@@ -161,7 +164,11 @@ TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
 
   const daemon::SessionLog log = daemon::read_session_log(log_);
   ASSERT_GE(log.checkpoints.size(), 2u);
-  const ladderlcm::checkpoint_t last = log.checkpoints.back();
+  const auto last = std::max_element(log.states.begin(), log.states.end(), [](const auto& a, const auto& b) {
+    return a.step < b.step;
+  });
+  ASSERT_NE(last, log.states.end());
+  EXPECT_GT(last->step, log.checkpoints.back().step);  // the test shows something only if it ends past one
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
 
@@ -171,8 +178,14 @@ TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
   start({"--resume", log_});
   const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
   ASSERT_TRUE(s.has_value());
-  EXPECT_EQ(s->step, static_cast<std::uint64_t>(last.step));
-  EXPECT_DOUBLE_EQ(s->sim_time, last.sim_time);
+  EXPECT_EQ(s->step, static_cast<std::uint64_t>(last->step));
+  EXPECT_EQ(s->sim_time, last->sim_time);
+  ASSERT_EQ(s->blocks.size(), last->x.size());
+  for (std::size_t i = 0; i < s->blocks.size(); ++i) {
+    EXPECT_EQ(s->blocks[i].x, last->x[i]) << "block " << i;
+    EXPECT_EQ(s->blocks[i].theta, last->theta[i]) << "block " << i;
+  }
+  EXPECT_EQ(s->commands_applied, 1u);  // the tip, numbered on from the log
   EXPECT_NE(server_->log().find("resumed from"), std::string::npos) << server_->log();
   accepted(cmd::resume());
   EXPECT_TRUE(client_->wait_state([&](const client::State& st) { return st.step > s->step + 100; }, kAnswer));
@@ -236,6 +249,90 @@ TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
   EXPECT_NE(r.output.find("skipped 1 state(s) with a hinge status other than 0, 1 or 2"), std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find("replayed " + std::to_string(states - 1) + " states"), std::string::npos) << r.output;
+}
+
+// The same across a reset: the resumed server stands in the reset's generation, with the settings made after it.
+TEST_F(Record, ResumeAfterKillNineGoesOnInTheGenerationOfTheLastReset) {
+  start({"--record", log_});
+  accepted(cmd::tip());
+  run_until(0.3);
+  accepted(cmd::reset());
+  for (const char* v : {"0.11", "0.12", "0.13"}) accepted(cmd::set(std::string("damping.linear=") + v));
+  server_->signal(SIGKILL);
+  server_->wait_exit(Millis(5000));
+  const std::uint64_t last_acked = applied_;
+  ASSERT_EQ(last_acked, 5u);
+
+  server_.reset();
+  client_.reset();
+  sim_id_ += "-resumed";
+  start({"--resume", log_});
+  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->generation, 1u);
+  EXPECT_EQ(s->commands_applied, last_acked);
+  const auto info = client_->wait_scene_info(kAnswer);
+  ASSERT_TRUE(info.has_value());
+  EXPECT_NE(info->options.find("damping.linear=0.13\n"), std::string::npos) << info->options;
+  EXPECT_NE(server_->log().find("(generation 1, step "), std::string::npos) << server_->log();
+}
+
+// Every acknowledged command is in the log file by the time its ack arrives: read back at each ack, the file holds
+// that command's record (the ack waits for the record to be written and flushed). Prints the command-to-ack
+// latency with and without --record, for docs/recording.md.
+TEST_F(Record, EveryAckArrivesAfterItsCommandIsInTheFile) {
+  const auto latencies = [&](bool check_file) {
+    std::vector<double> ms;
+    for (int i = 0; i < 200; ++i) {
+      const auto t0 = Clock::now();
+      const client::Ack a = client_->call(cmd::set(i % 2 ? "damping.angular=0.2" : "damping.angular=0.3"), kAnswer);
+      ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      EXPECT_TRUE(a.accepted) << a.reason;
+      if (!check_file) continue;
+      transport::LogReader in(log_);  // as a crash would leave it: up to the last complete event
+      bool found = false;
+      while (auto e = in.next())
+        if (e->channel == transport::kCommandChannel)
+          found = found || in.decode<ladderlcm::command_t>(*e).command_seq == static_cast<std::int64_t>(a.command_seq);
+      EXPECT_TRUE(found) << "command " << a.command_seq << " acknowledged before it was in the log";
+    }
+    std::sort(ms.begin(), ms.end());
+    return std::pair{ms[ms.size() / 2], ms[ms.size() * 99 / 100]};
+  };
+  start();
+  const auto [p50, p99] = latencies(false);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  start({"--record", log_});
+  const auto [rec_p50, rec_p99] = latencies(true);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  std::printf("command-to-ack over 200 commands: without --record p50 %.3f ms, p99 %.3f ms; with --record (the ack "
+              "waits for the flush) p50 %.3f ms, p99 %.3f ms\n", p50, p99, rec_p50, rec_p99);
+}
+
+// A forged event time (2^40 us, 12.7 days, ahead) cannot stall a replay: a pause of more than 10 s in the
+// recording is played as 10 s, and said. (The old replay waited for the forged time: killed after 20 s.)
+TEST_F(Record, AForgedTimestampCannotStallAReplay) {
+  start({"--record", log_});
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  transport::LogReader in(log_);
+  const std::string bent = (dir_ / "late.lcmlog").string();
+  std::size_t states = 0;
+  {
+    transport::LogWriter out(bent);
+    while (auto e = in.next()) {
+      const bool forged = e->channel == transport::kStateChannel && ++states == 3;
+      out.write_bytes(e->channel, forged ? e->utime + (std::int64_t{1} << 40) : e->utime, e->data, false);
+    }
+  }
+  ASSERT_GT(states, 3u);
+  // --speed 10: the 10 s pause takes 1 s.
+  const Result r = shell("timeout -s KILL 20 " + kLadderctl + " replay " + bent + " --speed 10 --as " + sim_id_ +
+                         "-replay --domain " + std::to_string(domain_));
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("1 pause(s) longer than 10 s in the recording played as 10 s"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("replayed " + std::to_string(states) + " states"), std::string::npos) << r.output;
 }
 
 // A recorded session replayed to a real ladder-view draws the same picture as the live server did at the same
@@ -359,6 +456,174 @@ TEST_F(Record, CorruptOrTruncatedLogsAreRefusedOrReadUpToTheDamage) {
   }
   EXPECT_GT(refused, 0);
   EXPECT_GT(read_to_damage, 0);
+}
+
+// The log with the first event on `channel` changed by `bend` (its encoded bytes, fingerprint included); returns
+// the event's number.
+std::uint64_t bend_first(const std::string& from, const std::string& to, const char* channel,
+                         const std::function<void(std::vector<std::uint8_t>&)>& bend) {
+  transport::LogReader in(from);
+  transport::LogWriter out(to);
+  std::uint64_t bent = 0;
+  while (auto e = in.next()) {
+    if (!bent && e->channel == channel) {
+      bend(e->data);
+      bent = e->number;
+    }
+    out.write_bytes(e->channel, e->utime, e->data, false);
+  }
+  return bent;
+}
+void put_big_endian(std::vector<std::uint8_t>& data, std::size_t at, std::uint64_t v, int bytes) {
+  for (int i = bytes - 1; i >= 0; --i, v >>= 8) data.at(at + static_cast<std::size_t>(i)) = v & 0xFF;
+}
+// Where fields lie in an encoded state_t (after the 8-byte fingerprint: utime 8, generation 4, seq 8, step 8,
+// sim_time 8, paused 1, commands_applied 8, energy 8, num_blocks 4), command_t and checkpoint_t (utime 8,
+// generation 4, step 8).
+constexpr std::size_t kStateStep = 28, kStateNumBlocks = 61, kCommandStep = 20, kCheckpointStep = 20;
+
+// The three hostile logs of issue 18 (a state with num_blocks = 2^28 + 1, a state whose payload after its
+// fingerprint is all 0x7f, a state with step 2^62): resimulate, replay and resume each refuse it (exit 2) within
+// 5 s, naming the event and what is wrong. On the old reader the first overflowed a heap buffer in all three, the
+// second hung the re-run and crashed the replay, the third made the re-run run forever.
+TEST_F(Record, HostileLogsAreRefusedByEveryReaderWithinFiveSeconds) {
+  start({"--record", log_});
+  accepted(cmd::tip());
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  struct Case {
+    const char* name;
+    std::function<void(std::vector<std::uint8_t>&)> bend;
+    std::string why;
+  };
+  const std::vector<Case> cases{
+      {"blocks", [](auto& d) { put_big_endian(d, kStateNumBlocks, (1u << 28) + 1, 4); },
+       "num_blocks = 268435457 is more than 1000000 (the most blocks a scene may have)"},
+      {"7f", [](auto& d) { std::fill(d.begin() + 8, d.end(), 0x7f); }, "paused = 127 is not a boolean (0 or 1)"},
+      {"step", [](auto& d) { put_big_endian(d, kStateStep, std::uint64_t{1} << 62, 8); },
+       "step = 4611686018427387904 is beyond 100000000000000"},
+  };
+  for (const Case& c : cases) {
+    const std::string bad = (dir_ / (std::string(c.name) + ".lcmlog")).string();
+    const std::uint64_t event = bend_first(log_, bad, transport::kStateChannel, c.bend);
+    ASSERT_GT(event, 0u);
+    const std::string where = "event " + std::to_string(event) + " (LADDER_STATE at byte ";
+    const std::string d = std::to_string(domain_);
+    const std::vector<std::pair<const char*, std::string>> readers{
+        {"resimulate", kLadderd + " --offline --resimulate " + bad},
+        {"replay", kLadderctl + " replay " + bad + " --as " + sim_id_ + "-replay --domain " + d},
+        {"resume", kLadderd + " --resume " + bad + " --domain " + d + " --sim-id " + sim_id_ + "-resumed"}};
+    for (const auto& [name, reader] : readers) {
+      const auto t0 = Clock::now();
+      const Result r = shell("timeout -s KILL 5 " + reader);  // 137 if it hangs
+      const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+      EXPECT_EQ(r.code, 2) << c.name << ": " << reader << "\n" << r.output;
+      EXPECT_NE(r.output.find(bad + ": " + where), std::string::npos) << c.name << ": " << reader << "\n"
+                                                                       << r.output;
+      EXPECT_NE(r.output.find(c.why), std::string::npos) << c.name << ": " << reader << "\n" << r.output;
+      const std::size_t line = std::min(r.output.find(bad + ": "), r.output.size());
+      std::printf("%s log, %s: exit %d in %.2f s: %s\n", c.name, name, r.code, took,
+                  r.output.substr(line, r.output.find('\n', line) - line).c_str());
+    }
+  }
+  // A command or a checkpoint at step 2^62: refused too (the re-run would step toward it forever).
+  for (const auto& [channel, at] : {std::pair{transport::kCommandChannel, kCommandStep},
+                                    std::pair{transport::kCheckpointChannel, kCheckpointStep}}) {
+    const std::string bad = (dir_ / "far.lcmlog").string();
+    const std::uint64_t event =
+        bend_first(log_, bad, channel, [at = at](auto& d) { put_big_endian(d, at, std::uint64_t{1} << 62, 8); });
+    const Result r = shell("timeout -s KILL 5 " + kLadderd + " --offline --resimulate " + bad);
+    EXPECT_EQ(r.code, 2) << channel << "\n" << r.output;
+    EXPECT_NE(r.output.find("event " + std::to_string(event) + " (" + channel), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("step = 4611686018427387904 is beyond"), std::string::npos) << r.output;
+  }
+}
+
+// A state whose step fits the step bound but not its time, or lies far past the last checkpoint: refused, so a
+// re-run never steps toward a place no run of the server reaches.
+TEST_F(Record, AStateBeyondWhatItsTimeAndCheckpointsAllowIsRefused) {
+  start({"--record", log_});
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const std::string bad = (dir_ / "far.lcmlog").string();
+  const std::uint64_t event = bend_first(log_, bad, transport::kStateChannel, [](auto& d) {
+    put_big_endian(d, kStateStep, 1'000'000'000, 8);
+  });
+  Result r = shell("timeout -s KILL 5 " + kLadderd + " --offline --resimulate " + bad);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("event " + std::to_string(event) + " (LADDER_STATE"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("steps of dt = 0.001 .. 0.001 s take 1e+06 .. 1e+06 s"), std::string::npos) << r.output;
+
+  // Its time made to agree (1e6 s at dt = 1 ms): now it is a million seconds past the checkpoint at step 0.
+  bend_first(log_, bad, transport::kStateChannel, [](auto& d) {
+    put_big_endian(d, kStateStep, 1'000'000'000, 8);
+    put_big_endian(d, kStateStep + 8, std::bit_cast<std::uint64_t>(1e6), 8);
+  });
+  r = shell("timeout -s KILL 5 " + kLadderd + " --offline --resimulate " + bad);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("1000000000 steps after the checkpoint before it (step 0)"), std::string::npos)
+      << r.output;
+}
+
+// kill -9 right after the last of 30 acknowledged commands (live settings and pokes, half of them before the
+// checkpoint at 1 s and half after): --resume applies every one of them. The commands logged after the last
+// checkpoint are replayed at their recorded steps, the resumed server numbers on from the log, and the live setting
+// is the last one set. (The old --resume stopped at the last checkpoint, and lost every command after it.)
+TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
+  start({"--record", log_});
+  accepted(cmd::tip());
+  std::uint64_t last_acked = 0;
+  std::string last_setting;
+  for (int i = 1; i <= 30; ++i) {
+    ladder_msg_Command c = cmd::poke(1 + i % 4, 0.0002 * (i % 2 ? 1 : -1), 0);
+    if (i % 3 != 0) {
+      char text[40];
+      std::snprintf(text, sizeof text, "damping.linear=0.%02d", i);
+      c = cmd::set(text);
+      last_setting = std::string(text) + "\n";
+    }
+    const client::Ack a = client_->call(c, kAnswer);
+    ASSERT_TRUE(a.accepted) << a.reason;
+    last_acked = applied_ = std::max(last_acked, a.command_seq);
+    if (i == 15) run_until(1.05);  // half of them before the checkpoint at 1 s, half after
+  }
+  server_->signal(SIGKILL);  // at once: no time for a 50 ms batch of the log writer
+  server_->wait_exit(Millis(5000));
+  ASSERT_EQ(last_acked, 31u);
+  ASSERT_EQ(last_setting, "damping.linear=0.29\n");
+
+  // Every acknowledged command is in the log, in order.
+  const daemon::SessionLog log = daemon::read_session_log(log_);
+  ASSERT_FALSE(log.commands.empty());
+  EXPECT_EQ(log.commands.size(), 31u);
+  EXPECT_EQ(log.commands.back().command_seq, 31);
+  const std::int64_t at_checkpoint = log.checkpoints.back().commands_applied;
+  ASSERT_GE(log.checkpoints.size(), 2u);
+  const auto after = std::count_if(log.commands.begin(), log.commands.end(),
+                                   [&](const ladderlcm::command_t& c) { return c.command_seq > at_checkpoint; });
+
+  server_.reset();
+  client_.reset();
+  sim_id_ += "-resumed";
+  start({"--resume", log_});
+  EXPECT_GT(after, 0);
+  EXPECT_LT(after, 31);
+  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->commands_applied, last_acked);
+  const auto info = client_->wait_scene_info(kAnswer);
+  ASSERT_TRUE(info.has_value());
+  EXPECT_NE(info->options.find(last_setting), std::string::npos) << info->options;
+  EXPECT_NE(server_->log().find("after replaying " + std::to_string(after) + " commands past the last checkpoint"),
+            std::string::npos)
+      << server_->log();
+  const std::string out = server_->log();
+  const std::size_t line = out.find("resumed from");
+  if (line != std::string::npos) std::printf("%s\n", out.substr(line, out.find('\n', line) - line).c_str());
+  // The next command goes on from the log's numbering.
+  const client::Ack a = client_->call(cmd::resume(), kAnswer);
+  EXPECT_TRUE(a.accepted) << a.reason;
+  EXPECT_EQ(a.command_seq, last_acked + 1);
 }
 
 }  // namespace

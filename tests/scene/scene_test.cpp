@@ -182,7 +182,7 @@ max_iterations = 50
 [damping]
 linear = 0.5
 angular = 0.25
-hinge = 0.125
+hinge = 0.0625
 )",
                               "<string>");
   EXPECT_EQ(s.name, "n");
@@ -209,7 +209,7 @@ hinge = 0.125
   EXPECT_EQ(s.options.max_iterations, 50);
   EXPECT_EQ(s.options.linear_damping, 0.5);
   EXPECT_EQ(s.options.angular_damping, 0.25);
-  EXPECT_EQ(s.options.hinge_friction, 0.125);
+  EXPECT_EQ(s.options.hinge_friction, 0.0625);
 }
 
 TEST(Values, TimelineIsReadAndSortedStably) {
@@ -329,7 +329,52 @@ TEST(Errors, OutOfRange) {
                {"ladder.hinge_inset must be >= 0 and < 0.5 (got 0.5)"});
   expect_error("[sim]\ndt = 0.2\n", "<string>:2:6: ", {"sim.dt must be >= 1e-07 and <= 0.1 (got 0.2)"});
   expect_error("[solver]\nmax_iterations = 1001\n", "<string>:2:18: ", {"solver.max_iterations", "(got 1001)"});
-  expect_error("[damping]\nhinge = -0.5\n", "<string>:2:9: ", {"damping.hinge must be >= 0 (got -0.5)"});
+  expect_error("[damping]\nhinge = -0.5\n", "<string>:2:9: ", {"damping.hinge must be >= 0 and <= 0.1 (got -0.5)"});
+}
+
+// The live settings' bounds hold in a file too, with the value's position: an accepted value cannot fail the step.
+TEST(Errors, LiveSettingsBoundsInAFile) {
+  EXPECT_EQ(error_of("[sim]\ngravity = [0, -2000]\n"),
+            "<string>:2:11: sim.gravity must have |g| <= 1000 m/s^2, about 100 g (got [0, -2000])");
+  EXPECT_EQ(error_of("[sim]\ngravity = [1e308, 1e308]\n"),
+            "<string>:2:11: sim.gravity must have |g| <= 1000 m/s^2, about 100 g (got [1e+308, 1e+308])");
+  EXPECT_EQ(error_of("[damping]\nlinear = 1e6\n"),
+            "<string>:2:10: damping.linear must be >= 0 and <= 1000 (got 1000000)");
+  EXPECT_EQ(error_of("[damping]\nangular = 1001\n"),
+            "<string>:2:11: damping.angular must be >= 0 and <= 1000 (got 1001)");
+  EXPECT_EQ(error_of("[damping]\nhinge = 0.5\n"), "<string>:2:9: damping.hinge must be >= 0 and <= 0.1 (got 0.5)");
+  // The sub-step: the file's substeps, or the --set that made it too small.
+  EXPECT_EQ(error_of("[sim]\ndt = 1e-6\nsubsteps = 100\n"),
+            "<string>:3:12: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got 1e-06 / 100 = "
+            "1e-08 s)");
+  EXPECT_EQ(error_of("[sim]\nsubsteps = 100\n", {"sim.dt=1e-6"}),
+            "--set sim.dt=1e-6: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got 1e-06 / 100 = "
+            "1e-08 s)");
+  EXPECT_EQ(error_of("[sim]\ndt = 2e-7\n", {"sim.accuracy=accurate"}),
+            "--set sim.accuracy=accurate: sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got "
+            "2e-07 / 4 = 5e-08 s)");
+  EXPECT_EQ(error_of("[initial]\nkick_omega = 1e300\n"),
+            "<string>:2:14: initial.kick_omega must be >= -1000 and <= 1000 (got 1e+300)");
+  EXPECT_EQ(error_of("[sim]\ndt = 1e-4\nsubsteps = 1000\n"), "");  // 1e-7 exactly, up to rounding
+  EXPECT_EQ(error_of("[sim]\ngravity = [0, -1000]\n[damping]\nlinear = 1000\nangular = 1000\nhinge = 0.1\n"), "");
+}
+
+// An empty scene file would silently be the defaults: almost always the wrong file, or one cut short.
+TEST(Errors, EmptySceneFileIsRefused) {
+  const std::string path = testing::TempDir() + "scene_test_empty.toml";
+  for (const char* text : {"", "\n  \n", "# only a comment\n"}) {
+    std::ofstream(path, std::ios::trunc) << text;
+    try {
+      load_scene(path);
+      ADD_FAILURE() << "no error for '" << text << "'";
+    } catch (const SceneError& e) {
+      EXPECT_EQ(std::string(e.what()), path + ":1:1: the scene file is empty; a scene needs at least one table, e.g. "
+                                              "[ladder] with blocks = 6 (docs/scenes.md lists every key)");
+    }
+  }
+  std::ofstream(path, std::ios::trunc) << "[ladder]\n";  // a table, even empty, says what the file is
+  EXPECT_EQ(load_scene(path).ladder.blocks, 6);
+  std::remove(path.c_str());
 }
 
 TEST(Errors, ZeroBlocks) {
