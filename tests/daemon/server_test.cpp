@@ -204,7 +204,7 @@ TEST_F(Server, ABurstWithinTheClientsBurstIsAllAppliedAndAnswered) {
   const auto after = c().wait_stats([&](const ladder_msg_Stats& st) { return st.commands_received >= kBurst; },
                                     Millis(10000));
   ASSERT_TRUE(after.has_value());
-  EXPECT_GT(after->steps, before->steps + 100) << "the loop stalled";
+  EXPECT_GT(after->steps, before->steps) << "the loop stalled";  // (not how far: that would measure the machine)
   EXPECT_EQ(after->commands_accepted, static_cast<std::uint64_t>(kBurst));
   EXPECT_EQ(after->commands_rate_limited + after->commands_unanswered + after->commands_duplicate, 0u);
 }
