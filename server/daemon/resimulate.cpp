@@ -215,6 +215,12 @@ void check_session(const SessionLog& log, const Origins& at) {
     const ladderlcm::command_t& c = log.commands[i];
     if (const auto why = check_step(gens, "command", c.generation, c.step, nullptr); !why.empty())
       refuse(log, transport::kCommandChannel, at.commands[i], why);
+    // A kind beyond the enum cannot come over DDS (Cyclone refuses it) and may not come from a file: held in the
+    // enum it would be undefined behaviour before any check could see it.
+    if (c.kind < 0 || c.kind > ladder_msg_LOAD_SCENE)
+      refuse(log, transport::kCommandChannel, at.commands[i],
+             "kind " + std::to_string(c.kind) + " is no command kind (0 to " + std::to_string(ladder_msg_LOAD_SCENE) +
+                 ")");
     // The server logs its commands in the order it applied them.
     if (i > 0 && c.command_seq <= log.commands[i - 1].command_seq)
       refuse(log, transport::kCommandChannel, at.commands[i],

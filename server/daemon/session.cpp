@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 #include <string_view>
@@ -154,8 +155,14 @@ Outcome Session::reset() {
 
 Outcome Session::apply(const ladder_msg_Command& c) {
   model::Ladder& l = sim_->ladder();
+  // The kind's bytes as a number first: an enum object holding a value beyond the enum's range (a caller that
+  // filled the struct from elsewhere) is undefined behaviour at its first read.
+  static_assert(sizeof c.kind == sizeof(std::int32_t));
+  std::int32_t kind = 0;
+  std::memcpy(&kind, &c.kind, sizeof kind);
+  if (kind < 0 || kind > ladder_msg_LOAD_SCENE) return {false, "unknown command kind " + std::to_string(kind)};
   try {
-    switch (c.kind) {
+    switch (static_cast<ladder_msg_CommandKind>(kind)) {
       case ladder_msg_TIP:
         sim_->apply(timed("tip"));
         break;
@@ -246,7 +253,7 @@ Outcome Session::apply(const ladder_msg_Command& c) {
       case ladder_msg_LOAD_SCENE:
         return load(text_of(c.text));
       default:
-        throw std::invalid_argument("unknown command kind " + std::to_string(static_cast<int>(c.kind)));
+        throw std::invalid_argument("unknown command kind " + std::to_string(kind));
     }
   } catch (const std::invalid_argument& e) {
     return {false, e.what()};

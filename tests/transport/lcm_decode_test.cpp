@@ -370,6 +370,10 @@ TEST_F(LogBytes, RecordsAreCheckedAgainstEachOther) {
                   "command_seq 2 after 2 (the server logs them in increasing order)"));
   EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), a_command(1, 1'000'000))),
                   "a command at generation 0, step 1000000, 1000000 steps after the checkpoint"));
+  // A kind beyond the enum (a command that cannot come over DDS) is refused before the enum holds it.
+  ladderlcm::command_t k = a_command(1);
+  k.kind = 99;
+  EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), k)), "kind 99 is no command kind (0 to 13)"));
   EXPECT_TRUE(has(read(log(an_event())), "no scene record"));
 }
 
