@@ -2,10 +2,19 @@
 // Cyclone's security plugins on loopback; and, without security, clients that take answers only from their server.
 #include "server_fixture.hpp"
 
+#include <arpa/inet.h>
+#include <linux/if_ether.h>
+#include <linux/if_packet.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
@@ -43,9 +52,7 @@ class Security : public ::testing::Test {
   // Starts ladderd (with `security` unless empty) and a controller client on the test's own domain and sim id.
   void start(const std::string& security) {
     const std::string name = test_name();
-    sim_id_ = name.substr(name.size() > 40 ? name.size() - 40 : 0) + "-" + std::to_string(getpid());
-    for (char& ch : sim_id_)
-      if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '-';
+    sim_id_ = sim_id_for(name);
     domain_ = domain_for(name);
     log_path_ = kBin + "/tests/" + name + ".log";
     std::vector<std::string> args{kDaemon, "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--log-level",
@@ -337,6 +344,79 @@ void ack_latency(Client& c, const char* what) {
   std::sort(ms.begin(), ms.end());
   std::printf("ack round trip %s: p50 %.3f ms, p99 %.3f ms, max %.3f ms (200 commands)\n", what, ms[100], ms[197],
               ms.back());
+}
+
+// Every packet on the loopback interface, searched for a byte string (root only: an AF_PACKET socket). Other tests
+// running at once send their own traffic over lo, under sim ids of their own.
+class LoopbackCapture {
+ public:
+  explicit LoopbackCapture(std::string needle) : needle_(std::move(needle)) {
+    fd_ = socket(AF_PACKET, SOCK_RAW | SOCK_CLOEXEC, htons(ETH_P_ALL));
+    sockaddr_ll a{};
+    a.sll_family = AF_PACKET;
+    a.sll_protocol = htons(ETH_P_ALL);
+    a.sll_ifindex = static_cast<int>(if_nametoindex("lo"));
+    ok_ = fd_ >= 0 && a.sll_ifindex > 0 && bind(fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0;
+    if (ok_) thread_ = std::thread([this] { run(); });
+  }
+  ~LoopbackCapture() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    if (fd_ >= 0) close(fd_);
+  }
+  bool ok() const { return ok_; }
+  std::uint64_t packets() const { return packets_; }
+  std::uint64_t matches() const { return matches_; }
+
+ private:
+  void run() {
+    std::vector<char> buf(1 << 16);
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (poll(&p, 1, 50) <= 0) continue;
+      const ssize_t n = recv(fd_, buf.data(), buf.size(), 0);
+      if (n <= 0) continue;
+      ++packets_;
+      if (std::search(buf.begin(), buf.begin() + n, needle_.begin(), needle_.end()) != buf.begin() + n) ++matches_;
+    }
+  }
+  std::string needle_;
+  int fd_ = -1;
+  bool ok_ = false;
+  std::atomic<bool> stop_{false};
+  std::atomic<std::uint64_t> packets_{0}, matches_{0};
+  std::thread thread_;
+};
+
+// On the wire, nothing of a secure session is readable: its sim id, which every State, Command and ack carries,
+// appears in no packet on lo while a controller commands the server. Without security the same capture finds it
+// (so the capture itself works).
+TEST_F(Security, OnTheWireNothingOfASecureSessionIsReadable) {
+  if (geteuid() != 0) GTEST_SKIP() << "capturing the loopback traffic needs root (an AF_PACKET socket)";
+  for (const bool secure : {false, true}) {
+    std::uint64_t packets = 0, matches = 0;
+    {
+      LoopbackCapture capture(sim_id_for(test_name()));
+      ASSERT_TRUE(capture.ok()) << "no AF_PACKET socket on lo: " << std::strerror(errno);
+      ASSERT_NO_FATAL_FAILURE(start(secure ? id("srv") : ""));
+      for (int i = 0; i < 20; ++i) {
+        const client::Ack a = client_->call(cmd::set("damping.linear=0.5"), kAnswer);
+        ASSERT_TRUE(a.accepted) << a.reason;
+      }
+      std::this_thread::sleep_for(Millis(300));  // the last states on the wire too
+      packets = capture.packets();
+      matches = capture.matches();
+    }
+    client_.reset();
+    server_.reset();
+    std::printf("%s: %llu packets on lo, %llu with the sim id\n", secure ? "with DDS Security" : "without security",
+                static_cast<unsigned long long>(packets), static_cast<unsigned long long>(matches));
+    EXPECT_GT(packets, 100u);
+    if (secure)
+      EXPECT_EQ(matches, 0u) << "the sim id is readable on the wire of a secure session";
+    else
+      EXPECT_GT(matches, 20u) << "without security the capture should see the sim id (in the states, commands, acks)";
+  }
 }
 
 TEST_F(Security, AckLatencyWithSecurity) {
