@@ -79,7 +79,7 @@ class Qos {
   dds_qos_t* q_;
 };
 
-// The QoS of each topic (DESIGN.md section 5); writer and reader of a topic use the same profile.
+// The QoS of each topic (docs/server.md, "Topics"); writer and reader of a topic use the same profile.
 enum class Profile {
   SceneInfo,   // reliable, transient-local, keep-last 1
   State,       // best-effort, keep-last 1, transient-local (the writer side is reliable for late joiners, see .cpp)

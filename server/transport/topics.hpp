@@ -1,4 +1,4 @@
-// The ladder's six DDS topics (msgs/ladder.idl, DESIGN.md section 5), created on one participant.
+// The ladder's six DDS topics (msgs/ladder.idl, docs/server.md), created on one participant.
 #pragma once
 
 #include "ladder.h"

@@ -1,4 +1,4 @@
-// The toy's behaviour on the shipped scenes (paper section 6; DESIGN.md section 4): the ripple, the two-ripple
+// The toy's behaviour on the shipped scenes (paper section 6; docs/model.md): the ripple, the two-ripple
 // cancellation, locks and unlocks, the free chain against closed-form physics, and the refusals.
 #include "scene/simulation.hpp"
 
