@@ -331,6 +331,14 @@ Outcome Session::set_param(const std::string& setting) {
   return {};
 }
 
+std::string scene_names(const std::string& dir) {
+  std::string names;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
+    if (entry.path().extension() == ".toml") names += (names.empty() ? "" : ", ") + entry.path().stem().string();
+  return names;
+}
+
 Outcome Session::load(const std::string& name) {
   namespace fs = std::filesystem;
   if (name.empty()) return {false, "load: give a scene name, e.g. classic"};
@@ -339,10 +347,7 @@ Outcome Session::load(const std::string& name) {
   const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
-    std::string available;
-    for (const auto& entry : fs::directory_iterator(scenes_dir_, ec))
-      if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
-    return {false, "no scene '" + name + "' in " + scenes_dir_ + " (available: " + available + ")"};
+    return {false, "no scene '" + name + "' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
   }
   try {
     const scene::Scene scene = scene::load_scene(path.string());

@@ -122,4 +122,8 @@ class Session {
 // The command kind's name as users type it ("tip", "break", "set", ...).
 const char* to_string(ladder_msg_CommandKind kind);
 
+// The scenes in `dir` (NAME of each NAME.toml), comma-separated; empty when there are none: what `load` and
+// `--scene` list when a name is not found.
+std::string scene_names(const std::string& dir);
+
 }  // namespace ladder::daemon

@@ -80,9 +80,7 @@ std::string find_scene(const std::string& scene, const std::string& scenes_dir) 
     throw std::runtime_error("--scene " + scene + ": no such file");
   const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
   if (fs::is_regular_file(named, ec)) return named.string();
-  std::string available;
-  for (const auto& entry : fs::directory_iterator(scenes_dir, ec))
-    if (entry.path().extension() == ".toml") available += (available.empty() ? "" : ", ") + entry.path().stem().string();
+  const std::string available = scene_names(scenes_dir);
   throw std::runtime_error("--scene " + scene + ": no such file, and no scene of that name in " + scenes_dir +
                            " (" + (available.empty() ? "none there" : "there: " + available) + ")");
 }
