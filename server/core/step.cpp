@@ -6,33 +6,15 @@
 //  rk4:                       4 stages of the same accelerations -> project positions, velocities
 //  projection:                kick(h) -> drift(h) -> project onto C(q1) = 0 along G(q) at the current iterate
 //                             (impulses enter v too) -> nothing more
+//  midpoint (the default):    Newton on the hinge impulses and each body's turn: every hinge closed at the end,
+//                             energy and momentum exact
 //  reduced:                   hinge forces at the start (the index-1 solve) -> symplectic Euler in each chain's
 //                             own coordinates (its first body's pose, then every body's angle) -> every other body
 //                             placed and moved by its hinge: no constraint solve, the hinges hold by construction
-// SHAKE and RATTLE are symplectic on the constraint manifold (Hairer, Lubich & Wanner, Geometric Numerical
-// Integration, VII.1): energy errors stay bounded instead of drifting. The explicit methods integrate the index-1
-// equations and are kept on the manifold by projection after each step (post-stabilisation), which does not
-// lower their order.
 //
-// projection is the "fast projection" of Goldenthal et al., Efficient Simulation of Inextensible Cloth (SIGGRAPH
-// 2007), for hinges: the unconstrained step is projected back onto the hinges by Newton's method with the Jacobian
-// re-linearised at every iterate, and the velocity is (q1 - q0) / h. The constraint forces thus act along the
-// hinges' directions at the end of the step (close to backward Euler in the constraint forces), which is what makes
-// it stable for stiff long chains at steps where SHAKE's start-of-step directions fail, at the price of first-order
-// accuracy and numerical damping of fast modes. Each iteration is one fused pass (anchors, residual, build, factor,
-// forward substitution) and one back-substitution pass that corrects the bodies; one iteration usually suffices at
-// a loose tolerance. With stabilization = none no velocity projection follows: the cheapest step the core has.
-//
-// reduced integrates a chain in its minimal coordinates, as robotics codes integrate a serial arm in its joint
-// angles (Featherstone, Rigid Body Dynamics Algorithms, 2008): the chain's first body has its full pose (or a drive)
-// and each further body only its angle, since the hinge places it. The accelerations are those of the constrained
-// equations at the start of the step, K lambda = -(a_free(p_a) - a_free(p_b)) (the same O(n) block-tridiagonal
-// solve as the explicit integrators', one factorisation), the angular velocities and angles take a symplectic Euler
-// step, and forward kinematics along each chain then puts every body where its hinge says, with the velocity its
-// hinge gives. Hinge errors are rounding (a few ulps of the positions); there is no position or velocity
-// projection and no Newton iteration. First order, like SHAKE, but not symplectic: a chain's mass matrix in its
-// angles depends on the angles (docs/tradeoff.md measures its energy error). A chain held at one end grows from that
-// end, whichever way its rows run; a chain held at both ends cannot, and SHAKE steps the world.
+// Each integrator's step is in its own file: shake.cpp (symplectic_euler, rattle, projection), explicit.cpp
+// (euler, rk4), reduced.cpp and midpoint.cpp. This file holds what they share: forces, drives, the fixed and adaptive
+// steps, the work of a step, snapshots and impulses.
 #include "core/world.hpp"
 #include "core/hot_inline.hpp"
 
@@ -51,6 +33,7 @@ const char* to_string(Integrator i) {
     case Integrator::RK4: return "rk4";
     case Integrator::Projection: return "projection";
     case Integrator::Reduced: return "reduced";
+    case Integrator::Midpoint: return "midpoint";
   }
   return "?";
 }
@@ -65,10 +48,10 @@ const char* to_string(SolverKind s) {
 
 Integrator integrator_from_string(const std::string& s) {
   for (Integrator i : {Integrator::Euler, Integrator::SymplecticEuler, Integrator::Rattle, Integrator::RK4,
-                       Integrator::Projection, Integrator::Reduced})
+                       Integrator::Projection, Integrator::Reduced, Integrator::Midpoint})
     if (s == to_string(i)) return i;
   throw std::invalid_argument("unknown integrator '" + s +
-                              "' (expected euler, symplectic_euler, rattle, rk4, projection or reduced)");
+                              "' (expected euler, symplectic_euler, rattle, rk4, projection, reduced or midpoint)");
 }
 
 const char* to_string(Stabilization s) {
@@ -244,7 +227,8 @@ namespace {
 // Order of accuracy p of each integrator (global error O(h^p)), for the adaptive step's error estimate.
 int order(Integrator i) {
   switch (i) {
-    case Integrator::Rattle: return 2;
+    case Integrator::Rattle:
+    case Integrator::Midpoint: return 2;
     case Integrator::RK4: return 4;
     case Integrator::Euler:
     case Integrator::SymplecticEuler:
@@ -363,8 +347,9 @@ void World::step_fixed(double h) {
     case Integrator::RK4: step_explicit(h, true); break;
     case Integrator::Projection: step_projection(h); break;
     case Integrator::Reduced: step_reduced(h); break;
+    case Integrator::Midpoint: step_midpoint(h); break;  // its own exact work and dissipation
   }
-  stats_.work = finish_work(t0, h);
+  if (options_.integrator != Integrator::Midpoint) stats_.work = finish_work(t0, h);
   mark_motion_changed();  // whatever stage changed velocities last
   std::erase_if(forces_, [this](const AppliedForce& af) { return !(t_ < af.until); });
 }
@@ -419,252 +404,6 @@ double World::finish_work(double t0, double h) const {
     work += (a_kinematic ? -j : j).dot(0.5 * (kinematic_v0_[i] + v1));
   }
   return work;
-}
-
-void World::step_shake(double h, bool rattle) {
-  const double t1 = t_ + h;
-  // SHAKE turns whatever position error it removes into velocity (divided by h). An error the step did not
-  // make (a join, the leftover of a restructure) must not: it is projected away first, positions only. Without
-  // this a short step (event location takes steps of 1e-10 s) turns a 1e-12 m leftover into metres per second.
-  if (position_residual() > options_.tolerance) {
-    start_anchors();
-    factor_system(ua0_, ub0_);
-    solve_positions(ua0_, ub0_, 0.0);
-  }
-  start_anchors();
-  if (factor_version_ != state_version_) factor_system(ua0_, ub0_);
-  kick_drift(rattle ? 0.5 * h : h, h);
-  drive_kinematic(t1);
-  stats_.converged = solve_positions(ua0_, ub0_, 1.0 / h);
-  if (rattle) {
-    accumulate_forces(force_, torque_, h);
-    kick(0.5 * h, force_, torque_);
-  }
-  t_ = t1;
-  if (options_.stabilization != Stabilization::None) project_velocities();
-}
-
-void World::step_projection(double h) {
-  const double t1 = t_ + h;
-  // As in step_shake(): an error this step did not make is removed first, positions only.
-  if (position_residual() > options_.tolerance) solve_projection(0.0);
-  kick_drift(h, h);
-  drive_kinematic(t1);
-  stats_.converged = solve_projection(1.0 / h);
-  t_ = t1;
-  if (options_.stabilization != Stabilization::None) project_velocities();
-}
-
-// The chains as the reduced step walks them, once per structure. rows_ is ordered along chains (topology.cpp), but
-// a chain's direction there is whichever end order_rows() met first: one held at its last row's body b grows from
-// that end instead. A chain with both ends driven cannot grow from either, and SHAKE steps the world.
-bool World::reduced_applies() {
-  if (reduced_structure_ == structure_) return reduced_ok_;
-  reduced_structure_ = structure_;
-  reduced_ok_ = true;
-  reduced_chains_.clear();
-  std::vector<char> hinged(bodies_.size(), 0);
-  const int n = static_cast<int>(rows_.size());
-  for (int k = 0; k < n;) {
-    int last = k;
-    while (last + 1 < n && rows_[last + 1].link_prev) ++last;
-    const bool driven_start = bodies_[rows_[k].a].kinematic, driven_end = bodies_[rows_[last].b].kinematic;
-    if (driven_start && driven_end) reduced_ok_ = false;
-    for (int j = k; j <= last; ++j) hinged[rows_[j].a] = hinged[rows_[j].b] = 1;
-    reduced_chains_.push_back({k, last, driven_end && !driven_start});
-    k = last + 1;
-  }
-  loose_bodies_.clear();
-  for (size_t b = 0; b < bodies_.size(); ++b)
-    if (!hinged[b] && !bodies_[b].kinematic) loose_bodies_.push_back(static_cast<int>(b));
-  return reduced_ok_;
-}
-
-void World::step_reduced(double h) {
-  if (!reduced_applies()) {
-    step_shake(h, false);
-    return;
-  }
-  const double t1 = t_ + h;
-  // The drives' accelerations at the start: always anew, since after a restore() kin_acc_ holds a later time's.
-  drive_kinematic(t_);
-  // The free forces: gravity and damping inline, unless users' forces or hinge friction need the general sum. Without
-  // damping a one-part body's is its weight alone.
-  const bool general = options_.hinge_friction != 0 || !forces_.empty();
-  const bool undamped = !general && options_.linear_damping == 0 && options_.angular_damping == 0;
-  const Vec2 g = options_.gravity;
-  if (general) accumulate_forces(force_, torque_, h);
-  const double cl = options_.linear_damping, ca = options_.angular_damping;
-  const auto free_force = [&](int i, Vec2& f, double& tau) HOT_INLINE {
-    const Body& body = bodies_[i];
-    if (general) {
-      f = force_[i], tau = torque_[i];
-    } else if (body.single_part) {  // body_force()'s common case, inline
-      f = body.mass * (g - cl * state_[i].v);
-      tau = -ca * body.inertia * state_[i].w;
-    } else {
-      body_force(i, f, tau);
-    }
-  };
-  // A body's acceleration at anchor u without the hinges (a driven body's: its drive's).
-  const auto free_acceleration = [&](int i, const Vec2& u) HOT_INLINE {
-    const Body& body = bodies_[i];
-    const BodyState& s = state_[i];
-    if (body.kinematic) return Vec2(kin_acc_[i] + kin_alpha_[i] * perp(u) - (s.w * s.w) * u);
-    if (undamped && body.single_part) return Vec2(g - (s.w * s.w) * u);
-    Vec2 f;
-    double tau;
-    free_force(i, f, tau);
-    return Vec2(body.inv_mass * f + (body.inv_inertia * tau) * perp(u) - (s.w * s.w) * u);
-  };
-  // Pass 1: K at the start, factored, with the hinge forces' right-hand side forward-substituted.
-  const int n = static_cast<int>(rows_.size());
-  ua0_.resize(rows_.size());
-  ub0_.resize(rows_.size());
-  const auto row = [&](int k, double* d, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
-    const Row& r = rows_[k];
-    symmetric_row(k, ua0_, ub0_, d, u_prev);
-    rhs = -(free_acceleration(r.a, ua0_[k]) - free_acceleration(r.b, ub0_[k]));
-  };
-  if (n > 0) {
-    stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
-    factor_version_ = 0;  // only what backward() needs is kept: nothing may take system_ for a full factorisation
-  }
-  // Pass 2, backwards: each body's hinge forces once both its rows' are known, then its angular velocity and angle
-  // (a free chain's first body: its whole pose) by symplectic Euler. The new state goes to the other buffer, which
-  // then changes places with state_: the state before the step is kept without a copy (step()'s `before`).
-  other_state_.resize(state_.size());
-  const auto advance = [&](int i, Vec2 f, double tau, bool whole) HOT_INLINE {
-    const Body& body = bodies_[i];
-    const BodyState& o = state_[i];
-    BodyState& s = other_state_[i];
-    if (!(undamped && body.single_part)) {
-      Vec2 f0;
-      double tau0;
-      free_force(i, f0, tau0);
-      f += f0;
-      tau += tau0;
-    }
-    s.w = o.w + h * body.inv_inertia * tau;
-    const double dth = h * s.w;
-    s.th = o.th + dth;
-    s.q = (o.q * rotation_of_small_angle(dth)).renormalised();
-    if (whole) {
-      s.v = o.v + h * (body.inv_mass * f + (undamped && body.single_part ? g : Vec2::Zero()));
-      s.x = o.x + h * s.v;
-    }
-  };
-  if (n > 0)
-    system_.backward(mu_, [&](int k) HOT_INLINE {
-      const Row& r = rows_[k];
-      Vec2 f;
-      double tau;
-      load_on_b(k, mu_.data(), ua0_.data(), ub0_.data(), f, tau);
-      if (!bodies_[r.b].kinematic) advance(r.b, f, tau, false);
-      if (records_impulse(r)) row_impulse_[k] += h * mu_[k];
-    });
-  // Each chain's first body, in its first row only: its whole pose unless the chain grows from its other end.
-  for (const ReducedChain& c : reduced_chains_) {
-    const Row& r = rows_[c.first];
-    const Vec2& l = mu_[c.first];
-    if (!bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[c.first], l), !c.from_end);
-  }
-  for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);
-  for (const int b : kinematic_bodies_) other_state_[static_cast<size_t>(b)] = state_[static_cast<size_t>(b)];
-  state_.swap(other_state_);
-  drive_kinematic(t1);  // the driven ends, where their drives are at the end
-  // Pass 3: every other body where its hinge puts it, moving as its hinge moves, from each chain's first body on.
-  const auto place = [&](BodyState& to, const Vec2& r_to, const BodyState& from, const Vec2& r_from) HOT_INLINE {
-    const Vec2 p_from = from.q * r_from, p_to = to.q * r_to;
-    to.x = (from.x + p_from) - p_to;
-    to.v = (from.v + from.w * perp(p_from)) - to.w * perp(p_to);
-  };
-  for (const ReducedChain& c : reduced_chains_) {
-    if (c.from_end) {
-      for (int k = c.last; k >= c.first; --k) place(state_[rows_[k].a], rows_[k].ra, state_[rows_[k].b], rows_[k].rb);
-    } else {
-      for (int k = c.first; k <= c.last; ++k) place(state_[rows_[k].b], rows_[k].rb, state_[rows_[k].a], rows_[k].ra);
-    }
-  }
-  t_ = t1;
-  mark_state_changed();
-}
-
-void World::step_explicit(double h, bool rk4) {
-  const double t0 = t_, t1 = t_ + h;
-  const size_t nb = bodies_.size();
-  drive_kinematic(t0);  // their accelerations enter the first stage
-  if (!rk4) {
-    constraint_accelerations(acc_lin_, acc_ang_, h, h);
-    for (size_t b = 0; b < nb; ++b) {
-      if (bodies_[b].kinematic) continue;
-      BodyState& s = state_[b];
-      s.x += h * s.v;
-      s.th += h * s.w;
-      s.q = (s.q * rotation_of_small_angle(h * s.w)).renormalised();
-      s.v += h * acc_lin_[b];
-      s.w += h * acc_ang_[b];
-    }
-    mark_state_changed();
-  } else {
-    // Classic RK4 on (x, theta, v, w); the rotation is composed from the start rotation so that q stays unit.
-    const std::vector<BodyState> y0 = state_;
-    std::vector<BodyState> k[4];
-    const double weight[4] = {h / 6, h / 3, h / 3, h / 6};
-    const double offset[4] = {0, 0.5 * h, 0.5 * h, h};
-    for (int stage = 0; stage < 4; ++stage) {
-      if (stage > 0) {
-        const double c = offset[stage];
-        for (size_t b = 0; b < nb; ++b) {
-          if (bodies_[b].kinematic) continue;
-          const BodyState& prev = k[stage - 1][b];
-          BodyState& s = state_[b];
-          s.x = y0[b].x + c * prev.x;
-          s.th = y0[b].th + c * prev.th;
-          s.q = y0[b].q * rotation_of_small_angle(c * prev.th);
-          s.v = y0[b].v + c * prev.v;
-          s.w = y0[b].w + c * prev.w;
-        }
-        drive_kinematic(t0 + c);
-        t_ = t0 + c;
-      }
-      constraint_accelerations(acc_lin_, acc_ang_, weight[stage], h);
-      // Store the derivative of the stage: (dx, dth) = (v, w), (dv, dw) = (a, alpha), packed in a BodyState.
-      k[stage].resize(nb);
-      for (size_t b = 0; b < nb; ++b) {
-        k[stage][b].x = state_[b].v;
-        k[stage][b].th = state_[b].w;
-        k[stage][b].v = acc_lin_[b];
-        k[stage][b].w = acc_ang_[b];
-      }
-    }
-    for (size_t b = 0; b < nb; ++b) {
-      if (bodies_[b].kinematic) continue;
-      BodyState& s = state_[b];
-      // Weights 1, 2, 2, 1 (written out: an Eigen expression returned from a lambda would outlive its operands).
-      const Vec2 dx = (h / 6) * (k[0][b].x + 2.0 * k[1][b].x + 2.0 * k[2][b].x + k[3][b].x);
-      const Vec2 dv = (h / 6) * (k[0][b].v + 2.0 * k[1][b].v + 2.0 * k[2][b].v + k[3][b].v);
-      const double dth = (h / 6) * (k[0][b].th + 2 * k[1][b].th + 2 * k[2][b].th + k[3][b].th);
-      const double dw = (h / 6) * (k[0][b].w + 2 * k[1][b].w + 2 * k[2][b].w + k[3][b].w);
-      s.x = y0[b].x + dx;
-      s.th = y0[b].th + dth;
-      s.q = (y0[b].q * rotation_of_small_angle(dth)).renormalised();
-      s.v = y0[b].v + dv;
-      s.w = y0[b].w + dw;
-    }
-    mark_state_changed();
-  }
-  drive_kinematic(t1);
-  t_ = t1;
-  // Post-stabilisation: back onto C(q) = 0 along the mass-metric normal, then onto G v = 0.
-  if (options_.stabilization == Stabilization::Position) {
-    start_anchors();
-    factor_system(ua0_, ub0_);
-    stats_.converged = solve_positions(ua0_, ub0_, 0.0);
-  } else {
-    stats_.residual = position_residual();  // what is left unprojected, for the statistics
-  }
-  if (options_.stabilization != Stabilization::None) project_velocities();
 }
 
 Snapshot World::save() const {

@@ -30,7 +30,7 @@
 
 namespace ladder::core {
 
-enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection, Reduced };
+enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection, Reduced, Midpoint };
 enum class SolverKind { Newton, NewtonLineSearch };
 // What keeps the state on the constraint manifold after a step, beyond what the integrator does itself:
 //  - none: nothing (explicit integrators drift off the hinges; SHAKE and projection keep positions exact, their
@@ -135,6 +135,10 @@ struct StepStats {
   // through their hinges: with gravity's in the potential energy and damping's negative, what an exact step's
   // energy may gain at most. The watchdog compares the step's energy gain with it.
   double work = 0;
+  // Energy that damping and hinge friction removed from the dynamic bodies over the step [J]: the midpoint
+  // integrator's exact ledger, E(t + h) - E(t) = work - dissipated to the solver's tolerance. 0 for the other
+  // integrators, whose energy change has no such exact split.
+  double dissipated = 0;
   // The adaptive step's figures (Options::adaptive): sub-steps accepted and rejected, and the largest accepted
   // sub-step's error estimate [m] (above the tolerance only where the smallest sub-step, 1/1024 of the step, was
   // not enough).
@@ -149,6 +153,7 @@ struct StepStats {
     regularised_pivots += s.regularised_pivots;
     converged = converged && s.converged;
     work += s.work;
+    dissipated += s.dissipated;
   }
 };
 
@@ -376,6 +381,7 @@ class World {
   void step_explicit(double h, bool rk4);
   void step_projection(double h);
   void step_reduced(double h);
+  void step_midpoint(double h);  // midpoint.cpp
   bool reduced_applies();
   double factor_current_forward();
   void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;
@@ -455,6 +461,17 @@ class World {
   bool reduced_ok_ = false;
   std::vector<ReducedChain> reduced_chains_;
   std::vector<int> loose_bodies_;
+
+  // The midpoint step's unknowns and per-step scratch (midpoint.cpp): per body the half-angle tangent t = tan(turn / 2)
+  // and the mean velocity's change vbar - v, with the sums and Newton terms of the current iterate; per row the impulse, the levers at
+  // the midpoint and the end.
+  struct MidpointWork {
+    std::vector<double> t, rho, jac, alpha, beta, gyration, stiff_coef, lift, force_ang, force_stiff;
+    std::vector<Vec2> vbar, vfree, lam, dlam, mid_a, mid_b, end_a, end_b;
+    std::vector<BodyState> kinematic_start;
+    std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
+  };
+  MidpointWork mid_;
 
   // scratch, kept to avoid allocation in the step
   std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;

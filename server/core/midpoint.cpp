@@ -1,0 +1,365 @@
+// The energy-consistent midpoint step (Integrator::Midpoint). docs/model.md derives it; in short, per dynamic body
+// with mass m, inertia I, centre x, velocity v, rotation q and spin w, and per hinge row k an impulse L_k (+L_k on
+// its body a, -L_k on its body b, sigma = +1 / -1):
+//
+//   x+ = x + h vbar,                     vbar = (v + v+) / 2
+//   q+ = q R(turn),   tan(turn / 2) = t,  t = h wbar / 2,  wbar = (w + w+) / 2      (the Cayley map)
+//   m (v+ - v) = h (m g + F - c m vbar) + sum_k sigma L_k
+//   I (w+ - w) = h (tau_F - beta wbar) + sum_k sigma lbar_k x L_k  + hinge friction
+//   every hinge closed at the end: x_a+ + q_a+ r_a = x_b+ + q_b+ r_b
+//
+// where lbar = (q + q+) r / 2 is the lever at the midpoint. Because q+ r - q r = 2 t perp(lbar) exactly, each force's
+// work over the step is F . (its point's displacement) exactly, and the hinge impulses, whose two points move
+// alike, do none: E(t + h) - E(t) = (work of users' forces and drives) - (damping and friction) with no error but
+// the solver's, for any h. Linear momentum is kept exactly; angular momentum too, since x_a + lbar_a = x_b + lbar_b
+// at the midpoint of a step that starts and ends with the hinge closed. The method is symmetric, hence second order,
+// and, like every midpoint rule, A-stable: a mode of frequency omega is seen at (2 / h) atan(h omega / 2) at any
+// step, where SHAKE and the explicit methods need h omega < 2 (a long hanging chain's stiff rocking breaks that).
+//
+// The unknowns are each body's t and each row's L; vbar is linear in the L. Newton's method on the hinge closures,
+// with each body's angular equation eliminated, gives one 2x2-block tridiagonal system per iteration (O(n), solved by
+// BlockTridiag::factor_forward). Its Jacobian carries the geometric stiffness of the tensions (the term
+// sigma (q+ r) . L in `jac`), which is what keeps the solve convergent for a long chain at a large step.
+#include "core/world.hpp"
+#include "core/hot_inline.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ladder::core {
+
+namespace {
+
+// 2 atan(t): the turn of a step whose half-angle tangent is t. A series for the common small t (the omitted
+// t^13 / 13 term is below half an ulp of t for |t| <= 0.05), libm beyond.
+double turn_of(double t) {
+  if (!(std::abs(t) <= 0.05)) return 2 * std::atan(t);
+  const double t2 = t * t;
+  return 2 * t * (1 - t2 * (1.0 / 3 - t2 * (1.0 / 5 - t2 * (1.0 / 7 - t2 * (1.0 / 9 - t2 * (1.0 / 11))))));
+}
+
+// The rotation by 2 atan(t), exactly unit up to rounding.
+Rot cayley(double t) {
+  const double k = 1 / (1 + t * t);
+  return {(1 - t * t) * k, 2 * t * k};
+}
+
+// Lever u (world frame, at the start) at the midpoint and at the end of a turn with half-angle tangent t.
+struct Levers {
+  Vec2 mid, end;
+};
+[[gnu::always_inline]] inline Levers levers(const Vec2& u, double t) {
+  const double k = 1 / (1 + t * t);
+  const Vec2 pu = perp(u);
+  return {k * (u + t * pu), k * ((1 - t * t) * u + (2 * t) * pu)};
+}
+
+// Newton-matrix coupling of a body's two rows through it: hbar I + e perp(end) perp(mid)^T.
+[[gnu::always_inline]] inline Mat2 coupling(double ha, double e, const Vec2& end, const Vec2& mid) {
+  const Vec2 pe = perp(end), pm = perp(mid);
+  Mat2 m;
+  m << ha + e * pe.x() * pm.x(), e * pe.x() * pm.y(), e * pe.y() * pm.x(), ha + e * pe.y() * pm.y();
+  return m;
+}
+
+}  // namespace
+
+// The angular residual (times the radius of gyration) must be this much below the hinge tolerance: a residual left
+// there is a systematic error of the spin, which the energy would show as a drift.
+constexpr double kRhoShare = 1e-4;
+constexpr double kEpsilon = 0x1p-52;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+void World::step_midpoint(double h) {
+  MidpointWork& m = mid_;
+  const double t0 = t_, t1 = t_ + h;
+  const size_t nb = bodies_.size(), n = rows_.size();
+  const Vec2 g = options_.gravity;
+  const double cl = options_.linear_damping, ca = options_.angular_damping, cf = options_.hinge_friction;
+
+  // An error this step did not make (a join, the leftover of a restructure) is projected away first, positions only,
+  // as SHAKE does: the midpoint would turn it into a velocity of error / h.
+  if (position_residual() > options_.tolerance) {
+    start_anchors();
+    factor_system(ua0_, ub0_);
+    solve_positions(ua0_, ub0_, 0.0);
+  }
+  // The driven bodies move to their poses at the end; what they were at the start serves the work and the friction.
+  m.kinematic_start.clear();
+  for (const int b : kinematic_bodies_) m.kinematic_start.push_back(state_[static_cast<size_t>(b)]);
+  std::vector<Vec2> kinematic_p0;  // the kinematic rows' driven anchors at the start
+  kinematic_p0.reserve(kinematic_rows_.size());
+  for (const int k : kinematic_rows_) {
+    const Row& r = rows_[static_cast<size_t>(k)];
+    const bool ak = bodies_[r.a].kinematic;
+    const BodyState& s = state_[ak ? r.a : r.b];
+    kinematic_p0.push_back(s.x + s.q * (ak ? r.ra : r.rb));
+  }
+  drive_kinematic(t1);
+
+  // Per body: the constants of the step and the first guess t = h w / 2.
+  m.t.resize(nb);
+  m.rho.resize(nb);
+  m.jac.resize(nb);
+  m.alpha.resize(nb);
+  m.beta.resize(nb);
+  m.vbar.resize(nb);
+  m.vfree.resize(nb);
+  for (size_t b = 0; b < nb; ++b) {
+    const Body& body = bodies_[b];
+    const BodyState& s = state_[b];
+    if (body.kinematic) {
+      m.alpha[b] = 0;
+      m.vbar[b] = Vec2::Zero();
+      continue;
+    }
+    // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
+    // -c_a I_p w (the parts' centres average to the body's).
+    double own = body.inertia;  // the parts' moments about their own centres
+    if (!body.single_part) {
+      own = 0;
+      for (const int p : body_parts_[b]) own += parts_[static_cast<size_t>(p)].inertia;
+    }
+    m.beta[b] = cl * (body.inertia - own) + ca * own;
+    m.alpha[b] = 1 / (body.mass * (2 + h * cl));
+    // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
+    m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
+    m.t[b] = 0.5 * h * s.w;
+  }
+  // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
+  for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
+    const size_t b = static_cast<size_t>(kinematic_bodies_[i]);
+    const Rot rel = m.kinematic_start[i].q.inverse() * state_[b].q;
+    m.t[b] = rel.s / (1 + rel.c);
+  }
+  // The users' forces, as impulses over the step at their start levers (world frame).
+  m.force_lever.clear();
+  for (const AppliedForce& af : forces_) {
+    const Part& p = parts_[static_cast<size_t>(af.part)];
+    m.force_lever.push_back(state_[static_cast<size_t>(p.body)].q * (p.rel_x + p.rel_q * af.local));
+    if (bodies_[p.body].kinematic) continue;
+    m.vfree[p.body] += (m.alpha[p.body] * h) * af.over_step(t0, h);
+  }
+
+  // Per row: the impulses start from zero, so that a step is a function of the state alone (a redone step, a
+  // resumed log and a re-simulation take the same bits); the levers at the start.
+  m.lam.assign(n, Vec2::Zero());
+  m.mid_a.resize(n);
+  m.mid_b.resize(n);
+  m.end_a.resize(n);
+  m.end_b.resize(n);
+  m.dlam.resize(n);
+  world_anchors(ua0_, ub0_);  // dynamic sides: the start levers; driven sides: their levers at the end
+  anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
+
+  const double tol = options_.tolerance;
+  StepStats& st = stats_;
+  st.converged = false;
+  const bool forced = !forces_.empty();
+  if (forced) {
+    m.force_ang.resize(nb);
+    m.force_stiff.resize(nb);
+  }
+  // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
+  // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side.
+  const auto finish_body = [&](int i, int prev, int next, double& worst_rho) HOT_INLINE {
+    const Body& body = bodies_[static_cast<size_t>(i)];
+    const double ti = m.t[i];
+    Vec2 lin = Vec2::Zero();
+    double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
+    if (prev >= 0) {
+      const Vec2& l = m.lam[prev];
+      const Levers v = levers(ub0_[prev], ti);
+      m.mid_b[prev] = v.mid;
+      m.end_b[prev] = v.end;
+      lin -= l;
+      ang -= cross(v.mid, l);
+      ang_abs += std::abs(cross(v.mid, l));
+      stiff -= v.end.dot(l);
+      if (cf != 0) {  // the friction impulse h cf (wbar_b - wbar_a) on a, its opposite on b; wbar = 2 t / h
+        ang -= 2 * cf * (ti - m.t[rows_[prev].a]);
+        friction_rows += 1;
+      }
+    }
+    if (next >= 0) {
+      const Vec2& l = m.lam[next];
+      const Levers v = levers(ua0_[next], ti);
+      m.mid_a[next] = v.mid;
+      m.end_a[next] = v.end;
+      lin += l;
+      ang += cross(v.mid, l);
+      ang_abs += std::abs(cross(v.mid, l));
+      stiff += v.end.dot(l);
+      if (cf != 0) {
+        ang += 2 * cf * (m.t[rows_[next].b] - ti);
+        friction_rows += 1;
+      }
+    }
+    if (forced) {
+      ang += m.force_ang[i];
+      ang_abs += std::abs(m.force_ang[i]);
+      stiff += m.force_stiff[i];
+    }
+    const double c = h / (4 * body.inertia), k = 1 / (1 + ti * ti), damp = 1 + h * m.beta[i] / (2 * body.inertia);
+    m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;  // vbar - v
+    const double rho = ti * damp - 0.5 * h * state_[i].w - c * ang;
+    // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
+    // instead of a singular one (the answer is the same; the iteration's path is not).
+    const double jac = std::max(damp + c * (stiff * k + 2 * cf * friction_rows), 0.05);
+    m.rho[i] = rho;
+    m.jac[i] = jac;
+    m.stiff_coef[i] = h * k / (2 * body.inertia * jac);
+    m.lift[i] = 2 * k * rho / jac;
+    // What rounding alone leaves of rho: a few ulps of its largest terms (a long chain's tension puts moments of
+    // several N m s on each block that cancel to a small net turn).
+    const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
+    const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * m.gyration[i];
+    worst_rho = std::isfinite(rho_excess) ? std::max(worst_rho, rho_excess) : kInfinity;
+  };
+  // A body's correction once its rows' are known: dt = (-rho + h / (4 I) sum sigma mid x dL) / jac.
+  const auto correct_body = [&](int i, int prev, int next) HOT_INLINE {
+    double dang = 0;
+    if (prev >= 0) dang -= cross(m.mid_b[prev], m.dlam[prev]);
+    if (next >= 0) dang += cross(m.mid_a[next], m.dlam[next]);
+    m.t[i] += (-m.rho[i] + h / (4 * bodies_[static_cast<size_t>(i)].inertia) * dang) / m.jac[i];
+  };
+  reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
+  m.gyration.resize(nb);
+  m.stiff_coef.resize(nb);
+  m.lift.resize(nb);
+  for (size_t b = 0; b < nb; ++b)
+    if (!bodies_[b].kinematic) m.gyration[b] = std::sqrt(bodies_[b].inertia * bodies_[b].inv_mass);
+  for (int iteration = 0;; ++iteration) {
+    if (forced) {  // the users' forces' moments at their midpoint levers, and their loads along the end levers
+      std::fill(m.force_ang.begin(), m.force_ang.end(), 0.0);
+      std::fill(m.force_stiff.begin(), m.force_stiff.end(), 0.0);
+      for (size_t f = 0; f < forces_.size(); ++f) {
+        const AppliedForce& af = forces_[f];
+        const int b = parts_[static_cast<size_t>(af.part)].body;
+        if (bodies_[b].kinematic) continue;
+        const Vec2 j = h * af.over_step(t0, h);
+        const Levers v = levers(m.force_lever[f], m.t[b]);
+        m.force_ang[b] += cross(v.mid, j);
+        m.force_stiff[b] += v.end.dot(j);
+      }
+    }
+    double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;
+    for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho);
+    // One pass along the rows: each row's bodies finished (body a at a chain's start, body b always, with its next
+    // row's side when it has one), the row's gap, its Newton blocks, factored and forward-substituted.
+    const auto row = [&](int k, Mat2& d, Mat2& lower, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
+      const Row& r = rows_[static_cast<size_t>(k)];
+      const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
+      if (ak) {
+        m.mid_a[k] = m.end_a[k] = ua0_[k];
+      } else if (!r.link_prev) {
+        finish_body(r.a, -1, k, worst_rho);
+      }
+      if (bk) {
+        m.mid_b[k] = m.end_b[k] = ub0_[k];
+      } else {
+        finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho);
+      }
+      const BodyState& a = state_[r.a];
+      const BodyState& b = state_[r.b];
+      const Vec2 pa = ak ? Vec2(a.x + m.end_a[k]) : Vec2(a.x + h * (a.v + m.vbar[r.a]) + m.end_a[k]);
+      const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
+      const Vec2 gap = pa - pb;
+      // Less what rounding alone leaves of it: a few ulps of the positions (6 km down a chain of 100 000 blocks
+      // they are 1e-12 m).
+      const double gap_floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
+      const double excess = std::max(gap.norm() - gap_floor, 0.0);
+      worst_gap2 = std::isfinite(excess) ? std::max(worst_gap2, excess * excess) : kInfinity;
+      largest_gap2 = std::max(largest_gap2, gap.squaredNorm());
+      // A dL = -gap + sum_i sigma lift_i perp(end_i), with A_kj = sum over the bodies i of rows k and j of
+      // sigma_ik sigma_ij (h alpha_i I + e_i perp(end_ik) perp(mid_ij)^T).
+      const double ha = ak ? 0.0 : h * m.alpha[r.a], ea = ak ? 0.0 : m.stiff_coef[r.a];
+      const double hb = bk ? 0.0 : h * m.alpha[r.b], eb = bk ? 0.0 : m.stiff_coef[r.b];
+      d = coupling(ha, ea, m.end_a[k], m.mid_a[k]) + coupling(hb, eb, m.end_b[k], m.mid_b[k]);
+      rhs = -gap;
+      if (!ak) rhs += m.lift[r.a] * perp(m.end_a[k]);
+      if (!bk) rhs -= m.lift[r.b] * perp(m.end_b[k]);
+      if (r.link_prev) {  // the shared body: b of row k - 1, a of row k
+        lower = -coupling(ha, ea, m.end_a[k], m.mid_b[k - 1]);
+        u_prev = -coupling(ha, ea, m.end_b[k - 1], m.mid_a[k]);
+      } else {
+        lower.setZero();
+        u_prev.setZero();
+      }
+    };
+    if (n > 0) st.regularised_pivots += newton_.factor_forward(static_cast<int>(n), row, m.dlam);
+    const double worst_gap = std::sqrt(worst_gap2);
+    st.residual = std::sqrt(largest_gap2);
+    if (!(worst_gap > tol) && !(worst_rho > kRhoShare * tol)) {
+      st.converged = true;
+      break;
+    }
+    if (iteration >= options_.max_iterations || !std::isfinite(worst_gap) || !std::isfinite(worst_rho)) break;
+    // Back-substitution: each row's correction, and each body's as soon as its rows' are known.
+    if (n > 0)
+      newton_.backward(m.dlam, [&](int k) HOT_INLINE {
+        const Row& r = rows_[static_cast<size_t>(k)];
+        m.lam[k] += m.dlam[k];
+        if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1);
+        if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k);
+      });
+    for (const int b : loose_bodies_) correct_body(b, -1, -1);
+    ++st.iterations;
+  }
+
+  // Work and dissipation of the step, exactly as the scheme accounts them.
+  double work = 0, dissipated = 0;
+  for (size_t b = 0; b < nb; ++b) {
+    const Body& body = bodies_[b];
+    if (body.kinematic) continue;
+    const double wbar = 2 * m.t[b] / h;
+    dissipated += h * (cl * body.mass * (state_[b].v + m.vbar[b]).squaredNorm() + m.beta[b] * wbar * wbar);
+  }
+  if (cf != 0)
+    for (const Row& r : rows_) {
+      const double wa = 2 * m.t[r.a] / h, wb = 2 * m.t[r.b] / h;
+      const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
+      if (ak && bk) continue;
+      dissipated += h * cf * (wb - wa) * (wb - wa);
+      if (ak) work += h * cf * wa * (wa - wb);  // the drive's share: what its turn does through the friction
+      if (bk) work += h * cf * wb * (wb - wa);
+    }
+  for (size_t i = 0; i < forces_.size(); ++i) {
+    const AppliedForce& af = forces_[i];
+    const int b = parts_[static_cast<size_t>(af.part)].body;
+    if (bodies_[b].kinematic) continue;
+    const Levers v = levers(m.force_lever[i], m.t[b]);
+    work += af.over_step(t0, h).dot(h * (state_[b].v + m.vbar[b]) + (v.end - m.force_lever[i]));
+  }
+  for (size_t i = 0; i < kinematic_rows_.size(); ++i) {
+    const size_t k = static_cast<size_t>(kinematic_rows_[i]);
+    const Row& r = rows_[k];
+    const bool ak = bodies_[r.a].kinematic;
+    const BodyState& s = state_[ak ? r.a : r.b];
+    const Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - kinematic_p0[i];
+    work += (ak ? -m.lam[k] : m.lam[k]).dot(moved) / h;  // the impulse over h is the mean force
+    row_impulse_[k] = m.lam[k];
+  }
+  if (has_welds_)
+    for (size_t k = 0; k < n; ++k) row_impulse_[k] = m.lam[k];
+  st.work = work;
+  st.dissipated = dissipated;
+
+  // The end of the step.
+  for (size_t b = 0; b < nb; ++b) {
+    if (bodies_[b].kinematic) continue;
+    BodyState& s = state_[b];
+    const double t = m.t[b];
+    s.x += h * (s.v + m.vbar[b]);
+    s.v += 2 * m.vbar[b];
+    s.w = 4 * t / h - s.w;
+    s.q = (s.q * cayley(t)).renormalised();
+    s.th += turn_of(t);
+  }
+  t_ = t1;
+  mark_state_changed();
+  if (options_.stabilization == Stabilization::Velocity) project_velocities();
+}
+
+}  // namespace ladder::core
