@@ -48,7 +48,7 @@ SolverKind solver_from_string(const std::string&);
 Stabilization stabilization_from_string(const std::string&);
 
 struct Options {
-  Integrator integrator = Integrator::SymplecticEuler;
+  Integrator integrator = Integrator::Midpoint;
   SolverKind solver = SolverKind::Newton;  // all but projection, whose solve is its own (step.cpp)
   Stabilization stabilization = Stabilization::Position;
   double tolerance = 1e-12;   // hinge position error the constraint solve drives below [m]

@@ -98,7 +98,7 @@ constexpr std::array kKeys{
            .help = "preset for sim.integrator, sim.substeps, sim.stabilization and solver.*; such a key given "
                    "beside it, or by --set over a file's preset, wins (docs/tradeoff.md)"},
     KeyDef{.name = "sim.integrator", .kind = Kind::Choice,
-           .choices = "euler|symplectic_euler|rattle|rk4|projection|reduced", .help = "time integrator"},
+           .choices = "euler|symplectic_euler|rattle|rk4|projection|reduced|midpoint", .help = "time integrator"},
     KeyDef{.name = "sim.stabilization", .kind = Kind::Choice, .choices = "none|velocity|position",
            .help = "projection back onto the hinges after a step"},
     KeyDef{.name = "sim.adaptive", .kind = Kind::Boolean,
@@ -570,7 +570,7 @@ const std::vector<AccuracyPreset>& accuracy_presets() {
   using core::Integrator, core::Stabilization, core::SolverKind;
   static const std::vector<AccuracyPreset> presets{
       {"fast", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-6, 20, 1},
-      {"balanced", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1},
+      {"balanced", Integrator::Midpoint, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1},
       {"accurate", Integrator::RK4, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 4},
   };
   return presets;

@@ -71,11 +71,11 @@ class QuickStudy : public ::testing::Test {
 
 TEST_F(QuickStudy, WritesEveryRunWithItsCostAndError) {
   ASSERT_EQ(result_.code, 0) << result_.output;
-  EXPECT_NE(result_.output.find("23/23"), std::string::npos) << result_.output;  // the progress reached the end
+  EXPECT_NE(result_.output.find("26/26"), std::string::npos) << result_.output;  // the progress reached the end
   ASSERT_GE(header_.size(), 20u);
   EXPECT_EQ(header_[0], "scene");
-  // Two reference runs, then 6 integrators and the paper's solver at 3 steps each.
-  ASSERT_EQ(rows_.size(), 2u + 7 * 3);
+  // Two reference runs, then 7 integrators and the paper's solver at 3 steps each.
+  ASSERT_EQ(rows_.size(), 2u + 8 * 3);
   for (size_t w : widths_) EXPECT_EQ(w, header_.size());  // text with commas (knob names, failures) is quoted
   for (const auto& r : rows_) {
     EXPECT_EQ(r.at("ok"), "1") << r.at("knob") << " " << r.at("setting");
@@ -100,6 +100,7 @@ TEST_F(QuickStudy, ErrorsShowEachIntegratorsOrder) {
   EXPECT_NEAR(ratio("rattle"), 4.0, 0.6);
   EXPECT_NEAR(ratio("rk4"), 16.0, 4.0);
   EXPECT_NEAR(ratio("reduced"), 2.0, 0.4);
+  EXPECT_NEAR(ratio("midpoint"), 4.0, 0.6);
   // The paper's solver changes the cost, not the answer (both converge to 1e-12 m).
   EXPECT_NEAR(error("symplectic_euler + newton_linesearch", 1e-3), error("symplectic_euler", 1e-3), 1e-9);
   // RK4 at 1 ms is more accurate than any first-order method at 0.5 ms.

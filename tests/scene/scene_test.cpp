@@ -53,7 +53,7 @@ TEST(ShippedScenes, ClassicHasTheDocumentedValues) {
   EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.dt, 0.001);
-  EXPECT_EQ(s.options.integrator, core::Integrator::SymplecticEuler);
+  EXPECT_EQ(s.options.integrator, core::Integrator::Midpoint);
   EXPECT_EQ(s.options.solver, core::SolverKind::Newton);
   EXPECT_DOUBLE_EQ(s.options.tolerance, 1e-12);
   ASSERT_EQ(s.timeline.size(), 1u);
