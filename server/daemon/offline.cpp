@@ -30,8 +30,7 @@ std::unique_ptr<std::ofstream> open_output(const std::string& path, const char* 
   return out;
 }
 
-void write_samples(std::ostream& out, const model::Ladder& ladder) {
-  const double t = ladder.time();
+void write_samples(std::ostream& out, const model::Ladder& ladder, double t) {
   for (int i = 0; i < ladder.blocks(); ++i) {
     const core::Vec2 c = ladder.block_centre(i);
     out << t << ',' << i << ',' << c.x() << ',' << c.y() << ',' << ladder.block_angle(i) << '\n';
@@ -82,14 +81,19 @@ int run_offline(const OfflineOptions& o) {
   std::map<std::string, int> counts;
   double sampled_error = sim->ladder().world().max_hinge_error();
   double stepping = 0;  // wall seconds spent in the simulation itself (not in writing files)
+  // Sample k is due at the first step that reaches k * 10 ms, counted in steps (a comparison of times would drift a
+  // step late at small dt); its time is the Simulation's, counted in steps too.
   int next_sample = 0;
-  const auto sample_due = [&] { return sim->time() >= 0.01 * next_sample - 1e-9 * sc.dt; };
+  const auto sample_due = [&] {
+    const double due = std::ceil(0.01 * next_sample / sim->dt() - 1e-6);
+    return static_cast<double>(sim->steps()) >= due;
+  };
   const auto started = Clock::now();
   auto last_report = started;
   try {
     while (true) {
       if (sample_due()) {
-        if (out.trajectory) write_samples(*out.trajectory, sim->ladder());
+        if (out.trajectory) write_samples(*out.trajectory, sim->ladder(), sim->time());
         sampled_error = std::max(sampled_error, sim->ladder().world().max_hinge_error());
         ++next_sample;
       }

@@ -28,7 +28,12 @@ void Simulation::apply(const TimedCommand& c) {
 }
 
 void Simulation::set(const std::string& setting) {
-  scene_ = with_live_setting(scene_, setting);
+  Scene changed = with_live_setting(scene_, setting);
+  if (changed.dt != dt_) {  // the step count restarts from now
+    clock_base_ = time();
+    clock_steps_ = 0;
+  }
+  scene_ = std::move(changed);
   dt_ = scene_.dt;
   ladder_.set_options(scene_.options);
 }
@@ -50,6 +55,7 @@ void Simulation::step() {
     max_hinge_error_ = std::max(max_hinge_error_, ladder_.world().last_step().residual);
   }
   ++steps_;
+  ++clock_steps_;
 }
 
 }  // namespace ladder::scene

@@ -30,7 +30,9 @@ class Simulation {
   // Applies a live setting "key=value" (see with_live_setting); throws SceneError, and then nothing changed.
   void set(const std::string& setting);
 
-  double time() const { return ladder_.time(); }
+  // The simulated time, counted in steps: the time when dt last changed plus the steps since times dt, so that the
+  // 10 000th step of 1 ms ends at 10 s exactly (the core's own clock is a running sum, off by rounding).
+  double time() const { return clock_base_ + static_cast<double>(clock_steps_) * dt_; }
   double dt() const { return dt_; }
   std::uint64_t steps() const { return steps_; }
   const Scene& scene() const { return scene_; }
@@ -48,6 +50,8 @@ class Simulation {
   double dt_;
   std::size_t next_ = 0;  // next timeline entry
   std::uint64_t steps_ = 0;
+  double clock_base_ = 0;            // time() when dt last changed
+  std::uint64_t clock_steps_ = 0;    // steps since then
   double max_hinge_error_ = 0;
   std::vector<Refusal> refusals_;
 };

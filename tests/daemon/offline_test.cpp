@@ -106,6 +106,35 @@ TEST_F(Offline, SetOverridesTheScene) {
   EXPECT_EQ(rows, 6 * 3);  // t = 0 .. 0.05 every 10 ms, three blocks
 }
 
+// Trajectory samples fall on exact multiples of 10 ms at any step: at dt = 1e-4 s a sampler comparing a running sum
+// of the steps with k * 10 ms fell one step late after about 1 s; the time is counted in steps, so the sample of
+// 1.23 s is written as 1.23 (to 17 digits) and there is one sample per 10 ms, no more, no fewer. The run's end
+// time is exact too.
+TEST_F(Offline, TrajectorySamplesFallOnExactMultiplesOfTenMilliseconds) {
+  for (const char* dt : {"0.0001", "0.0003", "0.001"}) {
+    const Result r = ladderd("--offline --quiet --scene " + kScenes + "free-chain.toml --duration 2 --set sim.dt=" + dt +
+                             " --trajectory " + path("traj.csv") + " --summary " + path("sum.json"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::istringstream traj(slurp(path("traj.csv")));
+    std::string line;
+    std::getline(traj, line);  // header
+    int k = 0;
+    const double step = std::stod(dt);
+    const bool whole = std::abs(0.01 / step - std::round(0.01 / step)) < 1e-9;  // 10 ms is a whole number of steps
+    for (int row = 0; std::getline(traj, line); ++row) {
+      if (row % 2) continue;  // two blocks a sample
+      const double t = std::stod(line.substr(0, line.find(',')));
+      // The first step that reaches k * 10 ms: exactly k * 10 ms when 10 ms is a whole number of steps.
+      const double expected = std::ceil(0.01 * k / step - 1e-6) * step;
+      EXPECT_EQ(t, expected) << "dt " << dt << " sample " << k;
+      if (whole) EXPECT_NEAR(t, 0.01 * k, 1e-15 * (1 + t)) << "dt " << dt << " sample " << k;
+      ++k;
+    }
+    EXPECT_EQ(k, 201) << "dt " << dt;
+    if (whole) EXPECT_EQ(json::parse(slurp(path("sum.json")))["sim_time"].get<double>(), 2.0) << "dt " << dt;
+  }
+}
+
 // Same scene, same settings: the same trajectory to the last digit (17 significant digits are written).
 TEST_F(Offline, RunsAreBitForBitRepeatable) {
   for (const char* name : {"a.csv", "b.csv"}) {
