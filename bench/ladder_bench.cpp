@@ -1,6 +1,6 @@
 // ladder-bench: block-steps per second of the simulation core (Google Benchmark).
 //
-// Workloads (dt = 1 ms, default accurate settings: symplectic Euler, Newton to 1e-12 m):
+// Workloads (dt = 1 ms, default settings: the midpoint integrator, Newton to 1e-12 m):
 //  - ChainZeroG: the comparison chain pinned at its top in zero gravity, block 1 kicked at 5 rad/s and the rest
 //    carried along: a travelling wave, no restructuring. The cost of the machinery per block and step, N = 10 to
 //    100 000.
@@ -12,6 +12,8 @@
 //  - LadderHeld: the server's default ladder (damped) hanging at rest in the hand, N = 10 000 and 100 000: what
 //    ladderd's loop costs between interventions. LadderTipped...: the 10 000-block ladder tipped, with the two
 //    integrators that run it at 1 ms.
+//  - FreeChainStraight: config/scenes/free-chain.toml's chain of N blocks from its straight start under gravity,
+//    N = 1000 to 100 000; ...Shake: with symplectic_euler, the former default; LadderHeldShake likewise.
 //  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
 //    projection integrator on a hanging chain too stiff for SHAKE at 1 ms.
 // Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the largest hinge error after the run [m]
@@ -150,6 +152,30 @@ void LadderTippedProjection(benchmark::State& state) {
 void LadderTippedReduced(benchmark::State& state) {
   run(state, held_ladder(static_cast<int>(state.range(0)), true), true);
 }
+// With the defaults (the midpoint integrator), which steps this tip at 1 ms.
+void LadderTipped(benchmark::State& state) { run(state, held_ladder(static_cast<int>(state.range(0)), false), true); }
+
+// The free chain of config/scenes/free-chain.toml from its straight start under gravity (the stability
+// workload: it falls, swings and whips), with the defaults and with SHAKE (symplectic_euler), the former default,
+// which needs watchdog halvings from N = 1000 (docs/benchmarks.md).
+core::Options shake(core::Options o) {
+  o.integrator = core::Integrator::SymplecticEuler;
+  return o;
+}
+void FreeChainStraight(benchmark::State& state) {
+  run(state, std::make_unique<model::Ladder>(free_chain_spec(static_cast<int>(state.range(0))), core::Options{}),
+      false);
+}
+void FreeChainStraightShake(benchmark::State& state) {
+  run(state,
+      std::make_unique<model::Ladder>(free_chain_spec(static_cast<int>(state.range(0))), shake(core::Options{})),
+      false);
+}
+void LadderHeldShake(benchmark::State& state) {
+  auto l = held_ladder(static_cast<int>(state.range(0)), false);
+  l->set_options(shake(l->world().options()));
+  run(state, std::move(l), false);
+}
 
 // A fixed number of steps per size (the same early motion at every size): 1.5 s of simulated time up to
 // N = 1000, 0.2 s at 10 000 and 0.03 s at 100 000.
@@ -157,6 +183,7 @@ BENCHMARK(ChainZeroG)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benc
 BENCHMARK(ChainZeroG)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(ChainZeroG)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(ChainHanging)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(ChainHanging)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(Ladder)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderNoLogic)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 // The `fast` preset (sim.accuracy = fast) on the same workloads, and the projection integrator on a hanging chain
@@ -178,6 +205,13 @@ BENCHMARK(LadderHeldReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMill
 BENCHMARK(LadderHeldReduced)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTippedProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTippedReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTipped)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldShake)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChainStraight)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChainStraight)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChainStraight)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChainStraightShake)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(FreeChainStraightShake)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
