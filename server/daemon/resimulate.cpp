@@ -1,6 +1,6 @@
 #include "daemon/resimulate.hpp"
 
-#include "daemon/server.hpp"
+#include "daemon/config.hpp"
 
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
@@ -72,38 +72,6 @@ std::string compare(const ladderlcm::state_t& r, const Session& s) {
 }
 
 }  // namespace
-
-ladderlcm::command_t command_record(const ladder_msg_Command& c) {
-  ladderlcm::command_t m;
-  m.client_id = transport::text_of(c.client_id);
-  m.command_id = static_cast<std::int64_t>(c.command_id);
-  m.kind = static_cast<std::int32_t>(c.kind);
-  m.block = c.block;
-  m.hinge = c.hinge;
-  m.count = static_cast<std::int32_t>(c.count);
-  m.has_point = c.has_point;
-  m.has_target = c.has_target;
-  m.has_angle = c.has_angle;
-  m.a = c.a, m.b = c.b, m.c = c.c, m.d = c.d, m.e = c.e, m.f = c.f;
-  m.text = transport::text_of(c.text);
-  return m;
-}
-
-ladder_msg_Command command_of(const ladderlcm::command_t& m) {
-  ladder_msg_Command c{};
-  copy_text(c.client_id, m.client_id);
-  c.command_id = static_cast<std::uint64_t>(m.command_id);
-  c.kind = static_cast<ladder_msg_CommandKind>(m.kind);
-  c.block = m.block;
-  c.hinge = m.hinge;
-  c.count = static_cast<std::uint32_t>(m.count);
-  c.has_point = m.has_point;
-  c.has_target = m.has_target;
-  c.has_angle = m.has_angle;
-  c.a = m.a, c.b = m.b, c.c = m.c, c.d = m.d, c.e = m.e, c.f = m.f;
-  copy_text(c.text, m.text);
-  return c;
-}
 
 namespace {
 
