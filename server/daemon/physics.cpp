@@ -2,6 +2,7 @@
 
 #include "daemon/frames.hpp"
 #include "daemon/realtime.hpp"
+#include "daemon/wire.hpp"
 #include "transport/dds.hpp"
 
 #include <spdlog/spdlog.h>
@@ -64,7 +65,9 @@ void Physics::take_commands() {
     const ladder_msg_Command& c = batch[i].command;
     const double t = session_.sim().time();
     const std::uint64_t step = session_.sim().steps();
-    const Outcome r = session_.apply(c);
+    const CommandFields fields = fields_of(c);
+    const char* kind = kind_name(fields.kind);
+    const Outcome r = session_.apply(fields);
     const bool restarted = session_.generation() != scene_generation_;
     acks[i] = {ack_for(c, r), batch[i].sender};
     ladder_msg_CommandAck& a = acks[i].ack;
@@ -75,17 +78,17 @@ void Physics::take_commands() {
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
     if (r.accepted && !r.reason.empty())  // accepted with a note (a reset that dropped the live settings)
-      spdlog::info("{} {} from {}: accepted: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} {} from {}: accepted: {}", kind, c.command_id, text_of(c.client_id), r.reason);
     else if (r.accepted)
-      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s{}", to_string(c.kind), c.command_id, text_of(c.client_id), t,
+      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s{}", kind, c.command_id, text_of(c.client_id), t,
                     taking_);
     else
-      spdlog::info("{} {} from {}: refused: {}", to_string(c.kind), c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} {} from {}: refused: {}", kind, c.command_id, text_of(c.client_id), r.reason);
     // SceneInfo carries the live settings and the rates: published (and logged) again when they change. A setting
     // that leaves them as they were (a value they already had) sends none: at N = 10 000 a SceneInfo is 80 kB of
     // masses to every reader.
     if (restarted ||
-        (r.accepted && c.kind == ladder_msg_SET_PARAM &&
+        (r.accepted && fields.kind == kind::kSet &&
          scene::live_settings(session_.sim().scene()) != scene_options_) ||
         std::tie(session_.rates().publish, session_.rates().real_time_factor) !=
             std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {

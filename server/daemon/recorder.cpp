@@ -106,20 +106,18 @@ ladderlcm::command_t command_record(const ladder_msg_Command& c) {
   return m;
 }
 
-ladder_msg_Command command_of(const ladderlcm::command_t& m) {
-  ladder_msg_Command c{};
-  copy_text(c.client_id, m.client_id);
-  c.command_id = static_cast<std::uint64_t>(m.command_id);
-  c.kind = static_cast<ladder_msg_CommandKind>(m.kind);
-  c.block = m.block;
-  c.hinge = m.hinge;
-  c.count = static_cast<std::uint32_t>(m.count);
-  c.has_point = m.has_point;
-  c.has_target = m.has_target;
-  c.has_angle = m.has_angle;
-  c.a = m.a, c.b = m.b, c.c = m.c, c.d = m.d, c.e = m.e, c.f = m.f;
-  copy_text(c.text, m.text);
-  return c;
+CommandFields fields_of(const ladderlcm::command_t& m) {
+  CommandFields f;
+  f.kind = m.kind;
+  f.block = m.block;
+  f.hinge = m.hinge;
+  f.count = static_cast<std::uint32_t>(m.count);
+  f.has_point = m.has_point;
+  f.has_target = m.has_target;
+  f.has_angle = m.has_angle;
+  f.a = m.a, f.b = m.b, f.c = m.c, f.d = m.d, f.e = m.e, f.f = m.f;
+  f.text = m.text;
+  return f;
 }
 
 }  // namespace ladder::daemon

@@ -2,6 +2,7 @@
 // records (docs/recording.md). The encoding happens on the I/O thread; the log writer's own thread does the file I/O.
 #pragma once
 
+#include "daemon/command.hpp"
 #include "daemon/handoff.hpp"
 #include "daemon/outbox.hpp"
 #include "ladderlcm/command_t.hpp"
@@ -27,8 +28,9 @@ class Recorder {
 };
 
 // A command as the log records it (its own fields; where and when it was applied, and its answer, are the
-// recorder's to fill in), and back. One pair, so that a field added to the command is added to both.
+// recorder's to fill in), and its fields read back for a re-run. One pair, so that a field added to the command is
+// added to both.
 ladderlcm::command_t command_record(const ladder_msg_Command& c);
-ladder_msg_Command command_of(const ladderlcm::command_t& m);
+CommandFields fields_of(const ladderlcm::command_t& m);
 
 }  // namespace ladder::daemon

@@ -1,12 +1,14 @@
 // The server's simulation session: the running scene, paused or running, and every user command applied to it.
 //
-// No DDS and no threads here: the real-time loop (server.cpp) feeds it commands and ticks, so that the command
-// rules (what is accepted, why one is refused, what changes) are tested without a network. A refused command
-// changes nothing: every check comes before the first change.
+// No DDS and no threads here: the real-time loop (physics.cpp) feeds it commands and ticks, so that the command
+// rules (what is accepted, why one is refused, what changes) are tested without a network. The session checks a
+// command against the server's limits (limits.hpp), then hands an action to the ladder (Ladder::apply, which
+// refuses what the ladder cannot do) or carries out its own verb. A refused command changes nothing: every check
+// comes before the first change.
 #pragma once
 
+#include "daemon/command.hpp"
 #include "daemon/limits.hpp"
-#include "ladder.h"  // generated from msgs/ladder.idl
 #include "scene/simulation.hpp"
 
 #include <cstdint>
@@ -26,7 +28,9 @@ class Session {
   Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates);
 
   // Validates and applies one command now.
-  Outcome apply(const ladder_msg_Command& c);
+  Outcome apply(const Request& r);
+  // The same for a command's fields as they came (from a client or a log): an unknown kind is refused.
+  Outcome apply(const CommandFields& f);
 
   // Runs one physics step (the caller decides when: real-time pacing is the loop's job).
   // Throws std::runtime_error when the step fails (the watchdog gave up); the session is then paused at the last
@@ -74,6 +78,13 @@ class Session {
   void set_taken_before(Taken t) { taken_before_ = t; }
 
  private:
+  // The session's verbs; a refusal throws std::invalid_argument or is returned.
+  Outcome verb(const Pause&);
+  Outcome verb(const Resume&);
+  Outcome verb(const Step& s);
+  Outcome verb(const Reset&) { return reset(); }
+  Outcome verb(const Set& s) { return set_param(s.setting); }
+  Outcome verb(const Load& l) { return load(l.name); }
   Outcome set_param(const std::string& setting);
   // Back to the scene's start: with the live settings, unless the last step failed (then with the scene's own).
   Outcome reset();
@@ -91,9 +102,6 @@ class Session {
   std::uint32_t generation_ = 0;
   Taken taken_before_;
 };
-
-// The command kind's name as users type it ("tip", "break", "set", ...).
-const char* to_string(ladder_msg_CommandKind kind);
 
 // The scenes in `dir` (NAME of each NAME.toml), comma-separated; empty when there are none: what `load` and
 // `--scene` list when a name is not found.

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <numbers>
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <variant>
 
 namespace ladder::model {
 
@@ -594,9 +596,9 @@ void Ladder::join_hinge(int k) {
   emit(EventKind::Join, k, r.energy_removed);
 }
 
-double Ladder::poke(int block, const Vec2& point, const Vec2& impulse) {
+double Ladder::poke(int block, const std::optional<Vec2>& point, const Vec2& impulse) {
   check_block(block);
-  return world_.apply_impulse(block, point, impulse);
+  return world_.apply_impulse(block, point ? *point : block_centre(block), impulse);
 }
 
 void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double duration) {
@@ -637,6 +639,50 @@ void Ladder::drag(int block, const Vec2& target, const double* angle) {
 void Ladder::release(int block) {
   Grip& g = grip_of(block);
   grips_.erase(grips_.begin() + (&g - grips_.data()));
+}
+
+// The turn of `angle` nearest the block's own angle (unwrapped, so several turns from 0 after tips): the grip's
+// torsional spring then turns it at most half a turn. An angle already that near is kept exactly as given.
+double Ladder::nearest_turn(double angle, int block) const {
+  const double block_angle_now = block_angle(block);
+  if (std::abs(angle - block_angle_now) <= M_PI) return angle;
+  return block_angle_now + std::remainder(angle - block_angle_now, 2 * M_PI);
+}
+
+void Ladder::apply(const Action& action) {
+  struct Dispatch {
+    Ladder& l;
+    void operator()(const Tip&) const { l.tip(); }
+    void operator()(const Poke& p) const { l.poke(p.block, p.at, p.impulse); }
+    void operator()(const Push& p) const { l.push(p.block, p.at, p.force, p.duration); }
+    void operator()(const Grab& g) const {
+      l.check_block(g.block);  // before its pose is read
+      Grip grip;
+      grip.block = g.block;
+      grip.local = g.local;
+      grip.stiffness = g.stiffness;
+      grip.target = g.target ? *g.target : l.block_centre(g.block) + l.world_.part_rotation(g.block) * g.local;
+      grip.hold_angle = g.angle.has_value();
+      grip.angle = g.angle ? l.nearest_turn(*g.angle, g.block) : 0;
+      l.grab(grip);
+    }
+    void operator()(const Drag& d) const {
+      double angle = d.angle.value_or(0);
+      const bool grabbed = std::any_of(l.grips_.begin(), l.grips_.end(), [&](const Grip& g) { return g.block == d.block; });
+      if (grabbed && d.angle) angle = l.nearest_turn(angle, d.block);  // (a block not grabbed is refused by drag)
+      l.drag(d.block, d.target, d.angle ? &angle : nullptr);
+    }
+    void operator()(const Release& r) const { l.release(r.block); }
+    void operator()(const Break& b) const { l.break_hinge(b.hinge); }
+    void operator()(const Join& j) const { l.join_hinge(j.hinge); }
+  };
+  std::visit(Dispatch{*this}, action);
+}
+
+const char* name(const Action& a) {
+  static constexpr const char* kNames[] = {"tip", "poke", "push", "grab", "drag", "release", "break", "join"};
+  static_assert(std::size(kNames) == std::variant_size_v<Action>);
+  return kNames[a.index()];
 }
 
 // Each grip as forces held over the next step. With the block's mass m (moment of inertia I), natural frequency

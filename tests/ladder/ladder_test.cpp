@@ -239,9 +239,9 @@ TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
     ASSERT_EQ(before.bodies.size(), after.bodies.size());
     for (size_t b = 0; b < before.bodies.size(); ++b) EXPECT_EQ(before.bodies[b].x, after.bodies[b].x);
   };
-  expect_refused([&] { l.poke(7, {0, 0}, {0.01, 0}); }, "no block 7");
-  expect_refused([&] { l.poke(0, {0, 0}, {0.01, 0}); }, "held");
-  expect_refused([&] { l.poke(2, {0, 0}, {std::nan(""), 0}); }, "finite");
+  expect_refused([&] { l.poke(7, core::Vec2(0, 0), {0.01, 0}); }, "no block 7");
+  expect_refused([&] { l.poke(0, core::Vec2(0, 0), {0.01, 0}); }, "held");
+  expect_refused([&] { l.poke(2, core::Vec2(0, 0), {std::nan(""), 0}); }, "finite");
   expect_refused([&] { l.break_hinge(9); }, "no hinge 9");
   expect_refused([&] { l.join_hinge(2); }, "not broken");
   expect_refused([&] { l.push(1, {0, 0}, {1, 0}, -1); }, "duration");
