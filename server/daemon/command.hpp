@@ -47,6 +47,21 @@ struct CommandFields {
   std::string text;
 };
 
+// The fields that a DDS Command and a log's command_t name and type alike (all but the kind and the text, which
+// each source reads its own way).
+template <class Message>
+CommandFields shared_fields(const Message& m) {
+  CommandFields f;
+  f.block = m.block;
+  f.hinge = m.hinge;
+  f.count = static_cast<std::uint32_t>(m.count);  // the log keeps the wire's uint32 in an int32
+  f.has_point = m.has_point;
+  f.has_target = m.has_target;
+  f.has_angle = m.has_angle;
+  f.a = m.a, f.b = m.b, f.c = m.c, f.d = m.d, f.e = m.e, f.f = m.f;
+  return f;
+}
+
 // The typed command. Throws std::invalid_argument("unknown command kind N") when the kind names none. Fields the
 // kind does not read are not read (a NaN left in one cannot reach the simulation).
 Request request_of(const CommandFields& f);

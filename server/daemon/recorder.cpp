@@ -107,15 +107,8 @@ ladderlcm::command_t command_record(const ladder_msg_Command& c) {
 }
 
 CommandFields fields_of(const ladderlcm::command_t& m) {
-  CommandFields f;
+  CommandFields f = shared_fields(m);
   f.kind = m.kind;
-  f.block = m.block;
-  f.hinge = m.hinge;
-  f.count = static_cast<std::uint32_t>(m.count);
-  f.has_point = m.has_point;
-  f.has_target = m.has_target;
-  f.has_angle = m.has_angle;
-  f.a = m.a, f.b = m.b, f.c = m.c, f.d = m.d, f.e = m.e, f.f = m.f;
   f.text = m.text;
   return f;
 }

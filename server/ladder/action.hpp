@@ -58,7 +58,4 @@ struct Join {
 
 using Action = std::variant<Tip, Poke, Push, Grab, Drag, Release, Break, Join>;
 
-// The action's name as users type it: "tip", "poke", ..., "break", "join".
-const char* name(const Action& a);
-
 }  // namespace ladder::model

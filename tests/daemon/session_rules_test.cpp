@@ -2,11 +2,11 @@
 // reason word for word, that a refusal changes nothing, pause and step, reset and load, and that a command's
 // action reaches the ladder by the same path as the scene timeline's. The server tests (server_test.cpp) keep what
 // needs a real ladderd: the wire, the loop's timing, the acks.
+#include "classic_session.hpp"
 #include "daemon/session.hpp"
 
 #include <gtest/gtest.h>
 
-#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -16,17 +16,6 @@ namespace {
 
 using core::Vec2;
 namespace m = model;
-
-const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes";
-constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// The classic scene (6 blocks, the top one held) without its scripted tip.
-std::unique_ptr<Session> classic() {
-  scene::Scene s = scene::load_scene(kScenes + "/classic.toml");
-  s.timeline.clear();
-  return std::make_unique<Session>(s, kScenes, Limits{}, Rates{});
-}
 
 struct Before {
   std::uint64_t hash, steps, pending;
@@ -98,7 +87,8 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   refused(*s, action(m::Grab{9, {0, 0}, {}, {}, 0}), "no block 9 (blocks are 0..5)");
   refused(*s, action(m::Grab{3, {0, 0}, Vec2(1e9, 0), {}, 0}), "the target is 1e+09 m from the origin, beyond the "
                                                                "reach of 10 m (commands.reach)");
-  refused(*s, action(m::Grab{3, {0, 0}, {}, {}, -1}), "the stiffness must be from 0 (the default) to 1e+06 N/m, not -1");
+  refused(*s, action(m::Grab{3, {0, 0}, {}, {}, -1}),
+          "the stiffness must be from 0 (the default) to 1e+06 N/m, not -1");
   refused(*s, action(m::Grab{3, {0, 0}, {}, 2000.0, 0}), "the angle must be from -1000 to 1000 rad, not 2000");
   refused(*s, action(m::Drag{3, {0, 0}, {}}), "nothing is grabbed; grab a block first");
   refused(*s, action(m::Release{3}), "nothing is grabbed; grab a block first");
@@ -184,7 +174,8 @@ TEST(SessionRules, ResetKeepsTheLiveSettingsAndLoadDropsThem) {
 // poke and push in the scene's timeline leave.
 TEST(SessionRules, ACommandAndTheTimelineReachTheLadderAlike) {
   scene::Scene scripted = scene::load_scene(kScenes + "/classic.toml");
-  scripted.timeline = {{0, m::Poke{3, {0.002, 0}, {}}, "test:1:1"}, {0, m::Push{4, {0.5, 0}, {0, 0.01}, 0.05}, "test:2:1"}};
+  scripted.timeline = {{0, m::Poke{3, {0.002, 0}, {}}, "test:1:1"},
+                       {0, m::Push{4, {0.5, 0}, {0, 0.01}, 0.05}, "test:2:1"}};
   Session timeline(scripted, kScenes, Limits{}, Rates{});
   scene::Scene plain = scripted;
   plain.timeline.clear();

@@ -1,6 +1,7 @@
 // The server's command rules without a network: every command parameter and live setting has a range, a value
 // outside it is refused with the key, the value and the range, and the refusal changes nothing. Values at the ends
 // of the ranges are accepted and the simulation keeps stepping.
+#include "classic_session.hpp"
 #include "daemon/session.hpp"
 #include "daemon/wire.hpp"
 #include "transport/dds.hpp"
@@ -9,7 +10,6 @@
 
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -17,17 +17,6 @@ namespace ladder::daemon {
 namespace {
 
 using core::Vec2;
-
-const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes";
-constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// The classic scene without its scripted tip, so that only the test's commands act on it.
-std::unique_ptr<Session> classic() {
-  scene::Scene s = scene::load_scene(kScenes + "/classic.toml");
-  s.timeline.clear();
-  return std::make_unique<Session>(s, kScenes, Limits{}, Rates{});
-}
 
 ladder_msg_Command command(ladder_msg_CommandKind kind) {
   ladder_msg_Command c{};
