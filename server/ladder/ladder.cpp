@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <iterator>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -645,8 +644,8 @@ void Ladder::release(int block) {
 // torsional spring then turns it at most half a turn. An angle already that near is kept exactly as given.
 double Ladder::nearest_turn(double angle, int block) const {
   const double block_angle_now = block_angle(block);
-  if (std::abs(angle - block_angle_now) <= M_PI) return angle;
-  return block_angle_now + std::remainder(angle - block_angle_now, 2 * M_PI);
+  if (std::abs(angle - block_angle_now) <= std::numbers::pi) return angle;
+  return block_angle_now + std::remainder(angle - block_angle_now, 2 * std::numbers::pi);
 }
 
 void Ladder::apply(const Action& action) {
@@ -668,7 +667,8 @@ void Ladder::apply(const Action& action) {
     }
     void operator()(const Drag& d) const {
       double angle = d.angle.value_or(0);
-      const bool grabbed = std::any_of(l.grips_.begin(), l.grips_.end(), [&](const Grip& g) { return g.block == d.block; });
+      const bool grabbed =
+          std::any_of(l.grips_.begin(), l.grips_.end(), [&](const Grip& g) { return g.block == d.block; });
       if (grabbed && d.angle) angle = l.nearest_turn(angle, d.block);  // (a block not grabbed is refused by drag)
       l.drag(d.block, d.target, d.angle ? &angle : nullptr);
     }
@@ -677,12 +677,6 @@ void Ladder::apply(const Action& action) {
     void operator()(const Join& j) const { l.join_hinge(j.hinge); }
   };
   std::visit(Dispatch{*this}, action);
-}
-
-const char* name(const Action& a) {
-  static constexpr const char* kNames[] = {"tip", "poke", "push", "grab", "drag", "release", "break", "join"};
-  static_assert(std::size(kNames) == std::variant_size_v<Action>);
-  return kNames[a.index()];
 }
 
 // Each grip as forces held over the next step. With the block's mass m (moment of inertia I), natural frequency
@@ -708,22 +702,6 @@ void Ladder::apply_grips(double h) {
     world_.add_force(part, Vec2(a, 0), f, time() + h);
     world_.add_force(part, Vec2(-a, 0), -f, time() + h);
   }
-}
-
-std::vector<Ribbon> Ladder::ribbons() const {
-  std::vector<Ribbon> out;
-  for (int k = 1; k < spec_.blocks; ++k) {
-    const HingeInfo& h = hinges_[k];
-    if (h.status == HingeStatus::Broken) continue;
-    Ribbon r;
-    r.hinge = k;
-    r.points[0] = corner(k - 1, h.corner ^ 1);
-    r.points[1] = corner(k, h.corner);
-    r.points[2] = corner(k, h.corner ^ 1);
-    r.outer_on_a = (h.flips + k) % 2 == 1;
-    out.push_back(r);
-  }
-  return out;
 }
 
 }  // namespace ladder::model

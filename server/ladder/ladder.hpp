@@ -1,4 +1,5 @@
-// The Jacob's ladder built from the engine's primitives (paper sections 4-5).
+// The Jacob's ladder built from the engine's primitives (paper sections 4-5). (Its ribbons are cosmetic: the viewer
+// derives them from the hinges, docs/viewer.md.)
 //
 // Blocks are seen side-on: a rectangle `length` tall and `thickness` wide, with four corner particles and a centre
 // particle (number 4), numbered as in the paper's Figure 4:
@@ -88,15 +89,6 @@ struct HingeInfo {
   int flips = 0;   // flip-flops so far
 };
 
-// A drawable ribbon: a polyline on hinge k's side of the two blocks, wrapping the hinged corner. The real toy
-// shows two outer ribbons on one block's face and one central ribbon on the other; `outer_on_a` says which,
-// and swaps at each flip-flop (paper, Figure 3).
-struct Ribbon {
-  int hinge = 0;
-  Vec2 points[3];
-  bool outer_on_a = true;
-};
-
 class Ladder {
  public:
   Ladder(const LadderSpec& spec, const core::Options& options);
@@ -152,7 +144,6 @@ class Ladder {
   bool held() const;
   double hinge_measure(int k) const;  // s of the class comment (> 0 means inside a forbidden quadrant)
   double energy() const { return world_.kinetic_energy() + world_.potential_energy(); }
-  std::vector<Ribbon> ribbons() const;  // computed on demand, only for drawing
   std::vector<Event> take_events();
   const core::World& world() const { return world_; }
   core::World& world() { return world_; }

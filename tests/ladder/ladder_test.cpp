@@ -253,27 +253,6 @@ TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
   expect_refused([&] { l.join_hinge(3); }, "capture distance");
 }
 
-// Ribbons are derived for drawing only: one per unbroken hinge, wrapping its hinged corner, and the side that shows
-// the two outer ribbons swaps at each flip-flop (paper, Figure 3).
-TEST(Ribbons, FollowTheHinges) {
-  scene::Simulation sim(shipped("classic.toml"));
-  model::Ladder& l = sim.ladder();
-  auto ribbons = l.ribbons();
-  ASSERT_EQ(ribbons.size(), 5u);
-  for (const model::Ribbon& r : ribbons) {
-    const int c = l.hinges()[r.hinge].corner;
-    EXPECT_LT((r.points[0] - l.corner(r.hinge - 1, c ^ 1)).norm(), 1e-15);
-    EXPECT_LT((r.points[1] - l.corner(r.hinge, c)).norm(), 1e-15);
-    EXPECT_LT((r.points[2] - l.corner(r.hinge, c ^ 1)).norm(), 1e-15);
-  }
-  const bool outer_before = ribbons[0].outer_on_a;
-  while (l.hinges()[1].flips == 0 && sim.time() < 5) sim.step();
-  ASSERT_EQ(l.hinges()[1].flips, 1);
-  EXPECT_NE(l.ribbons()[0].outer_on_a, outer_before);
-  l.break_hinge(3);
-  EXPECT_EQ(l.ribbons().size(), 4u);
-}
-
 // Pinned, not held: the top block cannot be tipped by a hand.
 TEST(Interventions, TipNeedsAHeldTopBlock) {
   scene::Simulation sim(shipped("free-chain.toml"));
