@@ -290,7 +290,7 @@ Reference reference(const Case& c, const Options& o) {
   const scene::Scene sc = make_scene(c, Setting{}, o);
   ref.tip_time = 0;
   for (const scene::TimedCommand& t : sc.timeline)
-    if (t.command == "tip") {
+    if (std::holds_alternative<model::Tip>(t.action)) {
       ref.tip_time = t.t;
       break;
     }

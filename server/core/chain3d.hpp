@@ -66,6 +66,7 @@ class Chain3D {
     Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
     double th = 0;  // accumulated rotation about z [rad]: picks block_angle()'s branch
   };
+  static_assert(sizeof(Body) == 128, "the hot per-body state is two cache lines");
   struct Snapshot {
     std::vector<Body> bodies;
     double t = 0;

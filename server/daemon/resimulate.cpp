@@ -1,6 +1,6 @@
 #include "daemon/resimulate.hpp"
 
-#include "daemon/server.hpp"
+#include "daemon/config.hpp"
 
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
@@ -72,38 +72,6 @@ std::string compare(const ladderlcm::state_t& r, const Session& s) {
 }
 
 }  // namespace
-
-ladderlcm::command_t command_record(const ladder_msg_Command& c) {
-  ladderlcm::command_t m;
-  m.client_id = transport::text_of(c.client_id);
-  m.command_id = static_cast<std::int64_t>(c.command_id);
-  m.kind = static_cast<std::int32_t>(c.kind);
-  m.block = c.block;
-  m.hinge = c.hinge;
-  m.count = static_cast<std::int32_t>(c.count);
-  m.has_point = c.has_point;
-  m.has_target = c.has_target;
-  m.has_angle = c.has_angle;
-  m.a = c.a, m.b = c.b, m.c = c.c, m.d = c.d, m.e = c.e, m.f = c.f;
-  m.text = transport::text_of(c.text);
-  return m;
-}
-
-ladder_msg_Command command_of(const ladderlcm::command_t& m) {
-  ladder_msg_Command c{};
-  copy_text(c.client_id, m.client_id);
-  c.command_id = static_cast<std::uint64_t>(m.command_id);
-  c.kind = static_cast<ladder_msg_CommandKind>(m.kind);
-  c.block = m.block;
-  c.hinge = m.hinge;
-  c.count = static_cast<std::uint32_t>(m.count);
-  c.has_point = m.has_point;
-  c.has_target = m.has_target;
-  c.has_angle = m.has_angle;
-  c.a = m.a, c.b = m.b, c.c = m.c, c.d = m.d, c.e = m.e, c.f = m.f;
-  copy_text(c.text, m.text);
-  return c;
-}
 
 namespace {
 
@@ -217,9 +185,9 @@ void check_session(const SessionLog& log, const Origins& at) {
       refuse(log, transport::kCommandChannel, at.commands[i], why);
     // A kind beyond the enum cannot come over DDS (Cyclone refuses it) and may not come from a file: held in the
     // enum it would be undefined behaviour before any check could see it.
-    if (c.kind < 0 || c.kind > ladder_msg_LOAD_SCENE)
+    if (c.kind < 0 || c.kind > kind::kLast)
       refuse(log, transport::kCommandChannel, at.commands[i],
-             "kind " + std::to_string(c.kind) + " is no command kind (0 to " + std::to_string(ladder_msg_LOAD_SCENE) +
+             "kind " + std::to_string(c.kind) + " is no command kind (0 to " + std::to_string(kind::kLast) +
                  ")");
     // The server logs its commands in the order it applied them.
     if (i > 0 && c.command_seq <= log.commands[i - 1].command_seq)
@@ -292,7 +260,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       ++r.commands_after_checkpoint;
       ++(c.accepted ? r.accepted : r.refused);
       if (!c.accepted) continue;  // refused: it changed nothing
-      if (c.kind == ladder_msg_LOAD_SCENE) {
+      if (c.kind == kind::kLoad) {
         // The scene text comes from the log (the file may have changed since).
         const auto s = std::find_if(log.scenes.begin(), log.scenes.end(), [&](const ladderlcm::scene_t& x) {
           return x.generation == static_cast<std::int32_t>(session->generation()) + 1;
@@ -302,9 +270,9 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
         session->restart(scene_of(*s));
         continue;
       }
-      const Outcome o = session->apply(command_of(c));
+      const Outcome o = session->apply(fields_of(c));
       if (!o.accepted) throw std::runtime_error("command " + std::to_string(c.command_seq) + " (" +
-                                                to_string(static_cast<ladder_msg_CommandKind>(c.kind)) +
+                                                kind_name(c.kind) +
                                                 "), accepted live, is refused in the re-run: " + o.reason);
     }
   };
@@ -382,7 +350,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     if (!reach(c.generation, c.step, applied) || (apply_due(c.command_seq), applied != c.command_seq)) {
       r.identical = false;
       r.difference = "could not reach command " + std::to_string(c.command_seq) + " (" +
-                     to_string(static_cast<ladder_msg_CommandKind>(c.kind)) + ") at its recorded " +
+                     kind_name(c.kind) + ") at its recorded " +
                      place(c.generation, c.step) + "; the re-run stands at " +
                      place(static_cast<std::int32_t>(session->generation()),
                            static_cast<std::int64_t>(session->sim().steps()));

@@ -7,6 +7,7 @@
 // from the same scene reproduces every state exactly; the re-run compares each recorded state and checkpoint.
 #pragma once
 
+#include "daemon/recorder.hpp"
 #include "daemon/session.hpp"
 #include "ladderlcm/checkpoint_t.hpp"
 #include "ladderlcm/command_t.hpp"
@@ -31,11 +32,6 @@ struct SessionLog {
   std::uint64_t events = 0;                        // event records (not needed to re-run)
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
 };
-
-// A command as the log records it (its own fields; where and when it was applied, and its answer, are the
-// recorder's to fill in), and back. One pair, so that a field added to the command is added to both.
-ladderlcm::command_t command_record(const ladder_msg_Command& c);
-ladder_msg_Command command_of(const ladderlcm::command_t& m);
 
 // Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the
 // records agree with each other (each generation has a scene record, a state has its scene's number of blocks, a

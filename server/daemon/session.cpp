@@ -1,21 +1,19 @@
 #include "daemon/session.hpp"
 
-#include "transport/dds.hpp"
-
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
+#include <variant>
 
 namespace ladder::daemon {
 
 namespace {
 
 using core::Vec2;
-using transport::text_of;
 
 std::string number(double v) {
   char buf[32];
@@ -28,29 +26,26 @@ void finite(double v, const char* name) {
   if (!std::isfinite(v)) throw std::invalid_argument(std::string(name) + " is " + number(v) + ", not a finite number");
 }
 
-Vec2 vec(double x, double y, const char* name) {
-  finite(x, name);
-  finite(y, name);
-  return {x, y};
+void finite(const Vec2& v, const char* name) {
+  finite(v.x(), name);
+  finite(v.y(), name);
 }
 
 // hypot, not norm(): |(1e300, 0)| is 1e300, where the sum of squares overflows to inf.
-Vec2 bounded(double x, double y, const char* name, double limit, const char* unit, const char* key) {
-  const Vec2 v = vec(x, y, name);
-  const double size = std::hypot(x, y);
+void bounded(const Vec2& v, const char* name, double limit, const char* unit, const char* key) {
+  finite(v, name);
+  const double size = std::hypot(v.x(), v.y());
   if (size > limit)
     throw std::invalid_argument(std::string(name) + " of " + number(size) + " " + unit + " is beyond the limit of " +
                                 number(limit) + " " + unit + " (" + key + ")");
-  return v;
 }
 
-Vec2 within_reach(double x, double y, const char* name, double reach) {
-  const Vec2 v = vec(x, y, name);
-  const double distance = std::hypot(x, y);
+void within_reach(const Vec2& v, const char* name, double reach) {
+  finite(v, name);
+  const double distance = std::hypot(v.x(), v.y());
   if (distance > reach)
     throw std::invalid_argument(std::string(name) + " is " + number(distance) +
                                 " m from the origin, beyond the reach of " + number(reach) + " m (commands.reach)");
-  return v;
 }
 
 // A point on block i: `offset` from its centre must lie inside the block (1 % slack for rounding).
@@ -64,57 +59,64 @@ void on_block(const model::Ladder& l, int i, const Vec2& offset, const char* nam
 }
 
 // A grip's stiffness: 0 (the default) to kMaxStiffness.
-double stiffness(double v) {
+void check_stiffness(double v) {
   finite(v, "the stiffness");
   if (!(v >= 0 && v <= kMaxStiffness))
     throw std::invalid_argument("the stiffness must be from 0 (the default) to " + number(kMaxStiffness) +
                                 " N/m, not " + number(v));
-  return v;
 }
 
 // A grip's angle: finite and within kMaxAngle.
-double angle_in_range(double v) {
-  finite(v, "the angle");
-  if (!(std::abs(v) <= kMaxAngle))
+void check_angle(const std::optional<double>& v) {
+  if (!v) return;
+  finite(*v, "the angle");
+  if (!(std::abs(*v) <= kMaxAngle))
     throw std::invalid_argument("the angle must be from -" + number(kMaxAngle) + " to " + number(kMaxAngle) +
-                                " rad, not " + number(v));
-  return v;
+                                " rad, not " + number(*v));
 }
 
-// The turn of `angle` nearest the block's own angle (unwrapped, so several turns from 0 after tips): the grip's
-// torsional spring then turns it at most half a turn. An angle already that near is kept exactly as given.
-double nearest_turn(double angle, double block_angle) {
-  if (std::abs(angle - block_angle) <= M_PI) return angle;
-  return block_angle + std::remainder(angle - block_angle, 2 * M_PI);
-}
-
-scene::TimedCommand timed(const char* command) {
-  scene::TimedCommand t;
-  t.command = command;
-  return t;
-}
+// The server's limits on an action, checked before the ladder sees it, in the order a reason is given when
+// several are broken. The block must exist before a point is measured from it: the ladder's check comes first.
+struct Check {
+  const Limits& limits;
+  const model::Ladder& l;
+  void operator()(const model::Tip&) const {}
+  void operator()(const model::Poke& p) const {
+    bounded(p.impulse, "the impulse", limits.max_impulse, "N s", "commands.max_impulse");
+    l.check_block(p.block);
+    if (p.at) {
+      finite(*p.at, "the point");
+      on_block(l, p.block, *p.at - l.block_centre(p.block), "the point");
+    }
+  }
+  void operator()(const model::Push& p) const {
+    bounded(p.force, "the force", limits.max_force, "N", "commands.max_force");
+    finite(p.at, "the point");
+    finite(p.duration, "the duration");
+    if (!(p.duration > 0 && p.duration <= limits.max_duration))
+      throw std::invalid_argument("the duration must be > 0 and at most " + number(limits.max_duration) +
+                                  " s (commands.max_duration), not " + number(p.duration));
+    l.check_block(p.block);
+    on_block(l, p.block, p.at, "the point");
+  }
+  void operator()(const model::Grab& g) const {
+    finite(g.local, "the point");
+    check_stiffness(g.stiffness);
+    check_angle(g.angle);
+    l.check_block(g.block);
+    on_block(l, g.block, g.local, "the point");
+    if (g.target) within_reach(*g.target, "the target", limits.reach);
+  }
+  void operator()(const model::Drag& d) const {
+    within_reach(d.target, "the target", limits.reach);
+    check_angle(d.angle);
+  }
+  void operator()(const model::Release&) const {}
+  void operator()(const model::Break&) const {}
+  void operator()(const model::Join&) const {}
+};
 
 }  // namespace
-
-const char* to_string(ladder_msg_CommandKind kind) {
-  switch (kind) {
-    case ladder_msg_TIP: return "tip";
-    case ladder_msg_POKE: return "poke";
-    case ladder_msg_PUSH: return "push";
-    case ladder_msg_GRAB: return "grab";
-    case ladder_msg_DRAG: return "drag";
-    case ladder_msg_RELEASE: return "release";
-    case ladder_msg_BREAK_HINGE: return "break";
-    case ladder_msg_JOIN_HINGE: return "join";
-    case ladder_msg_PAUSE: return "pause";
-    case ladder_msg_RESUME: return "resume";
-    case ladder_msg_STEP: return "step";
-    case ladder_msg_RESET: return "reset";
-    case ladder_msg_SET_PARAM: return "set";
-    case ladder_msg_LOAD_SCENE: return "load";
-  }
-  return "unknown";
-}
 
 Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates)
     : sim_(std::make_unique<scene::Simulation>(scene)),
@@ -153,111 +155,46 @@ Outcome Session::reset() {
   return {true, "the last step failed: the scene restarted with its own settings (the live settings dropped)"};
 }
 
-Outcome Session::apply(const ladder_msg_Command& c) {
-  model::Ladder& l = sim_->ladder();
-  // The kind's bytes as a number first: an enum object holding a value beyond the enum's range (a caller that
-  // filled the struct from elsewhere) is undefined behaviour at its first read.
-  static_assert(sizeof c.kind == sizeof(std::int32_t));
-  std::int32_t kind = 0;
-  std::memcpy(&kind, &c.kind, sizeof kind);
-  if (kind < 0 || kind > ladder_msg_LOAD_SCENE) return {false, "unknown command kind " + std::to_string(kind)};
+Outcome Session::apply(const CommandFields& f) {
   try {
-    switch (static_cast<ladder_msg_CommandKind>(kind)) {
-      case ladder_msg_TIP:
-        sim_->apply(timed("tip"));
-        break;
-      case ladder_msg_POKE: {
-        scene::TimedCommand t = timed("poke");
-        t.impulse = bounded(c.a, c.b, "the impulse", limits_.max_impulse, "N s", "commands.max_impulse");
-        l.check_block(c.block);
-        t.block = c.block;
-        if (c.has_point) {
-          t.at = vec(c.c, c.d, "the point");
-          t.has_at = true;
-          on_block(l, c.block, t.at - l.block_centre(c.block), "the point");
-        }
-        sim_->apply(t);
-        break;
-      }
-      case ladder_msg_PUSH: {
-        scene::TimedCommand t = timed("push");
-        t.force = bounded(c.a, c.b, "the force", limits_.max_force, "N", "commands.max_force");
-        t.at = c.has_point ? vec(c.c, c.d, "the point") : Vec2::Zero();
-        t.has_at = true;
-        finite(c.e, "the duration");
-        if (!(c.e > 0 && c.e <= limits_.max_duration))
-          throw std::invalid_argument("the duration must be > 0 and at most " + number(limits_.max_duration) +
-                                      " s (commands.max_duration), not " + number(c.e));
-        t.duration = c.e;
-        l.check_block(c.block);
-        t.block = c.block;
-        on_block(l, c.block, t.at, "the point");
-        sim_->apply(t);
-        break;
-      }
-      case ladder_msg_GRAB: {
-        model::Ladder::Grip g;
-        g.local = c.has_point ? vec(c.c, c.d, "the point") : Vec2::Zero();
-        g.stiffness = stiffness(c.e);
-        const double angle = c.has_angle ? angle_in_range(c.f) : 0;
-        l.check_block(c.block);
-        g.block = c.block;
-        on_block(l, c.block, g.local, "the point");
-        g.target = c.has_target ? within_reach(c.a, c.b, "the target", limits_.reach)
-                                : l.block_centre(c.block) + l.world().part_rotation(c.block) * g.local;
-        g.hold_angle = c.has_angle;
-        // Without an angle, f is not read at all: whatever a client left there (NaN too) must not reach the State.
-        g.angle = c.has_angle ? nearest_turn(angle, l.block_angle(c.block)) : 0;
-        l.grab(g);
-        break;
-      }
-      case ladder_msg_DRAG: {
-        const Vec2 target = within_reach(c.a, c.b, "the target", limits_.reach);
-        double angle = c.has_angle ? angle_in_range(c.f) : 0;
-        const auto& grips = l.grips();
-        const bool grabbed = std::any_of(grips.begin(), grips.end(), [&](const auto& g) { return g.block == c.block; });
-        if (grabbed && c.has_angle) angle = nearest_turn(angle, l.block_angle(c.block));
-        l.drag(c.block, target, c.has_angle ? &angle : nullptr);  // refuses a block that is not grabbed
-        break;
-      }
-      case ladder_msg_RELEASE:
-        l.release(c.block);
-        break;
-      case ladder_msg_BREAK_HINGE:
-      case ladder_msg_JOIN_HINGE: {
-        scene::TimedCommand t = timed(c.kind == ladder_msg_BREAK_HINGE ? "break" : "join");
-        t.hinge = c.hinge;
-        sim_->apply(t);
-        break;
-      }
-      case ladder_msg_PAUSE:
-        if (paused_) throw std::invalid_argument("already paused");
-        paused_ = true;
-        break;
-      case ladder_msg_RESUME:
-        if (!paused_) throw std::invalid_argument("not paused");
-        paused_ = false;
-        pending_steps_ = 0;
-        break;
-      case ladder_msg_STEP:
-        if (!paused_) throw std::invalid_argument("step works while paused: send pause first");
-        if (c.count < 1 || c.count > limits_.max_step_count)
-          throw std::invalid_argument("the step count must be 1 to " + std::to_string(limits_.max_step_count) +
-                                      " (commands.max_step_count), not " + std::to_string(c.count));
-        pending_steps_ += c.count;
-        break;
-      case ladder_msg_RESET:
-        return reset();
-      case ladder_msg_SET_PARAM:
-        return set_param(text_of(c.text));
-      case ladder_msg_LOAD_SCENE:
-        return load(text_of(c.text));
-      default:
-        throw std::invalid_argument("unknown command kind " + std::to_string(kind));
+    return apply(request_of(f));
+  } catch (const std::invalid_argument& e) {  // an unknown kind
+    return {false, e.what()};
+  }
+}
+
+Outcome Session::apply(const Request& r) {
+  try {
+    if (const auto* action = std::get_if<model::Action>(&r)) {
+      std::visit(Check{limits_, sim_->ladder()}, *action);
+      sim_->ladder().apply(*action);
+      return {};
     }
+    return std::visit([this](const auto& v) { return verb(v); }, std::get<Verb>(r));
   } catch (const std::invalid_argument& e) {
     return {false, e.what()};
   }
+}
+
+Outcome Session::verb(const Pause&) {
+  if (paused_) throw std::invalid_argument("already paused");
+  paused_ = true;
+  return {};
+}
+
+Outcome Session::verb(const Resume&) {
+  if (!paused_) throw std::invalid_argument("not paused");
+  paused_ = false;
+  pending_steps_ = 0;
+  return {};
+}
+
+Outcome Session::verb(const Step& s) {
+  if (!paused_) throw std::invalid_argument("step works while paused: send pause first");
+  if (s.count < 1 || s.count > limits_.max_step_count)
+    throw std::invalid_argument("the step count must be 1 to " + std::to_string(limits_.max_step_count) +
+                                " (commands.max_step_count), not " + std::to_string(s.count));
+  pending_steps_ += s.count;
   return {};
 }
 

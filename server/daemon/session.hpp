@@ -1,11 +1,14 @@
 // The server's simulation session: the running scene, paused or running, and every user command applied to it.
 //
-// No DDS and no threads here: the real-time loop (server.cpp) feeds it commands and ticks, so that the command
-// rules (what is accepted, why one is refused, what changes) are tested without a network. A refused command
-// changes nothing: every check comes before the first change.
+// No DDS and no threads here: the real-time loop (physics.cpp) feeds it commands and ticks, so that the command
+// rules (what is accepted, why one is refused, what changes) are tested without a network. The session checks a
+// command against the server's limits (limits.hpp), then hands an action to the ladder (Ladder::apply, which
+// refuses what the ladder cannot do) or carries out its own verb. A refused command changes nothing: every check
+// comes before the first change.
 #pragma once
 
-#include "ladder.h"  // generated from msgs/ladder.idl
+#include "daemon/command.hpp"
+#include "daemon/limits.hpp"
 #include "scene/simulation.hpp"
 
 #include <cstdint>
@@ -14,34 +17,6 @@
 #include <utility>
 
 namespace ladder::daemon {
-
-// Bounds on what a user may ask for (ladderd.toml [commands]); beyond them a command is refused, not clamped.
-struct Limits {
-  double max_impulse = 1.0;    // [N s] poke (a 25 g block would leave at 40 m/s)
-  double max_force = 100.0;    // [N] push
-  double max_duration = 60.0;  // [s] push
-  double reach = 10.0;         // [m] targets and points must lie this close to the origin
-  std::uint32_t max_step_count = 100'000;  // one step command
-};
-
-// The bounds of the rates, for `set` as for ladderd.toml and the command line. Below them the server would stop
-// publishing (at 1e-300 Hz the next state is due in 1e300 s) or the simulation would freeze (a real-time factor of
-// 1e-300 owes one step every 1e297 s). 1 Hz keeps a client's view of a running ladder at most a second old.
-constexpr double kMinPublishRate = 1;        // [Hz]
-constexpr double kMinRealTimeFactor = 0.01;  // besides 0 (as fast as possible): 10 ms of sim time per second
-constexpr double kMaxRealTimeFactor = 1000;
-// The largest grab stiffness and angle. A hand is softer than 1e6 N/m (the grip's frequency is capped at 0.2/dt in
-// any case); an angle is an orientation, wrapped to within half a turn of the block's own (a hand turns a block
-// the short way), and beyond 1000 rad (160 turns) a value is a mistake, not a turn.
-constexpr double kMaxStiffness = 1e6;  // [N/m]
-constexpr double kMaxAngle = 1000;     // [rad]
-
-// What the server's loop runs at; the live keys server.real_time_factor and server.publish_rate change it.
-struct Rates {
-  double physics = 1000;          // ticks per wall second
-  double publish = 60;            // states per wall second
-  double real_time_factor = 1.0;  // sim seconds per wall second; 0 = as fast as possible
-};
 
 struct Outcome {
   bool accepted = true;
@@ -53,7 +28,9 @@ class Session {
   Session(const scene::Scene& scene, std::string scenes_dir, Limits limits, Rates rates);
 
   // Validates and applies one command now.
-  Outcome apply(const ladder_msg_Command& c);
+  Outcome apply(const Request& r);
+  // The same for a command's fields as they came (from a client or a log): an unknown kind is refused.
+  Outcome apply(const CommandFields& f);
 
   // Runs one physics step (the caller decides when: real-time pacing is the loop's job).
   // Throws std::runtime_error when the step fails (the watchdog gave up); the session is then paused at the last
@@ -101,6 +78,13 @@ class Session {
   void set_taken_before(Taken t) { taken_before_ = t; }
 
  private:
+  // The session's verbs; a refusal throws std::invalid_argument or is returned.
+  Outcome verb(const Pause&);
+  Outcome verb(const Resume&);
+  Outcome verb(const Step& s);
+  Outcome verb(const Reset&) { return reset(); }
+  Outcome verb(const Set& s) { return set_param(s.setting); }
+  Outcome verb(const Load& l) { return load(l.name); }
   Outcome set_param(const std::string& setting);
   // Back to the scene's start: with the live settings, unless the last step failed (then with the scene's own).
   Outcome reset();
@@ -118,9 +102,6 @@ class Session {
   std::uint32_t generation_ = 0;
   Taken taken_before_;
 };
-
-// The command kind's name as users type it ("tip", "break", "set", ...).
-const char* to_string(ladder_msg_CommandKind kind);
 
 // The scenes in `dir` (NAME of each NAME.toml), comma-separated; empty when there are none: what `load` and
 // `--scene` list when a name is not found.

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <variant>
 
 namespace ladder::model {
 
@@ -594,9 +595,9 @@ void Ladder::join_hinge(int k) {
   emit(EventKind::Join, k, r.energy_removed);
 }
 
-double Ladder::poke(int block, const Vec2& point, const Vec2& impulse) {
+double Ladder::poke(int block, const std::optional<Vec2>& point, const Vec2& impulse) {
   check_block(block);
-  return world_.apply_impulse(block, point, impulse);
+  return world_.apply_impulse(block, point ? *point : block_centre(block), impulse);
 }
 
 void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double duration) {
@@ -639,6 +640,45 @@ void Ladder::release(int block) {
   grips_.erase(grips_.begin() + (&g - grips_.data()));
 }
 
+// The turn of `angle` nearest the block's own angle (unwrapped, so several turns from 0 after tips): the grip's
+// torsional spring then turns it at most half a turn. An angle already that near is kept exactly as given.
+double Ladder::nearest_turn(double angle, int block) const {
+  const double block_angle_now = block_angle(block);
+  if (std::abs(angle - block_angle_now) <= std::numbers::pi) return angle;
+  return block_angle_now + std::remainder(angle - block_angle_now, 2 * std::numbers::pi);
+}
+
+void Ladder::apply(const Action& action) {
+  struct Dispatch {
+    Ladder& l;
+    void operator()(const Tip&) const { l.tip(); }
+    void operator()(const Poke& p) const { l.poke(p.block, p.at, p.impulse); }
+    void operator()(const Push& p) const { l.push(p.block, p.at, p.force, p.duration); }
+    void operator()(const Grab& g) const {
+      l.check_block(g.block);  // before its pose is read
+      Grip grip;
+      grip.block = g.block;
+      grip.local = g.local;
+      grip.stiffness = g.stiffness;
+      grip.target = g.target ? *g.target : l.block_centre(g.block) + l.world_.part_rotation(g.block) * g.local;
+      grip.hold_angle = g.angle.has_value();
+      grip.angle = g.angle ? l.nearest_turn(*g.angle, g.block) : 0;
+      l.grab(grip);
+    }
+    void operator()(const Drag& d) const {
+      double angle = d.angle.value_or(0);
+      const bool grabbed =
+          std::any_of(l.grips_.begin(), l.grips_.end(), [&](const Grip& g) { return g.block == d.block; });
+      if (grabbed && d.angle) angle = l.nearest_turn(angle, d.block);  // (a block not grabbed is refused by drag)
+      l.drag(d.block, d.target, d.angle ? &angle : nullptr);
+    }
+    void operator()(const Release& r) const { l.release(r.block); }
+    void operator()(const Break& b) const { l.break_hinge(b.hinge); }
+    void operator()(const Join& j) const { l.join_hinge(j.hinge); }
+  };
+  std::visit(Dispatch{*this}, action);
+}
+
 // Each grip as forces held over the next step. With the block's mass m (moment of inertia I), natural frequency
 // w, stiffness m w^2 (I w^2) and critical damping 2 m w (2 I w). An explicit step of a spring is stable while
 // w h < 2, and 0.2 keeps it accurate; the chain attached to the block only adds inertia, so the block alone is the
@@ -662,22 +702,6 @@ void Ladder::apply_grips(double h) {
     world_.add_force(part, Vec2(a, 0), f, time() + h);
     world_.add_force(part, Vec2(-a, 0), -f, time() + h);
   }
-}
-
-std::vector<Ribbon> Ladder::ribbons() const {
-  std::vector<Ribbon> out;
-  for (int k = 1; k < spec_.blocks; ++k) {
-    const HingeInfo& h = hinges_[k];
-    if (h.status == HingeStatus::Broken) continue;
-    Ribbon r;
-    r.hinge = k;
-    r.points[0] = corner(k - 1, h.corner ^ 1);
-    r.points[1] = corner(k, h.corner);
-    r.points[2] = corner(k, h.corner ^ 1);
-    r.outer_on_a = (h.flips + k) % 2 == 1;
-    out.push_back(r);
-  }
-  return out;
 }
 
 }  // namespace ladder::model

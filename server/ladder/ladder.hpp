@@ -1,4 +1,5 @@
-// The Jacob's ladder built from the engine's primitives (paper sections 4-5).
+// The Jacob's ladder built from the engine's primitives (paper sections 4-5). (Its ribbons are cosmetic: the viewer
+// derives them from the hinges, docs/viewer.md.)
 //
 // Blocks are seen side-on: a rectangle `length` tall and `thickness` wide, with four corner particles and a centre
 // particle (number 4), numbered as in the paper's Figure 4:
@@ -19,10 +20,12 @@
 #pragma once
 
 #include "core/world.hpp"
+#include "ladder/action.hpp"
 
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -86,15 +89,6 @@ struct HingeInfo {
   int flips = 0;   // flip-flops so far
 };
 
-// A drawable ribbon: a polyline on hinge k's side of the two blocks, wrapping the hinged corner. The real toy
-// shows two outer ribbons on one block's face and one central ribbon on the other; `outer_on_a` says which,
-// and swaps at each flip-flop (paper, Figure 3).
-struct Ribbon {
-  int hinge = 0;
-  Vec2 points[3];
-  bool outer_on_a = true;
-};
-
 class Ladder {
  public:
   Ladder(const LadderSpec& spec, const core::Options& options);
@@ -105,11 +99,17 @@ class Ladder {
   void advance(double h);
 
   // --- interventions; each throws std::invalid_argument with the reason when it cannot be done ---
+  // The one dispatch of an action (a client's, a log's or a timeline's) to the interventions below; what the
+  // action leaves open it settles here: a poke without a point is at the block's centre, a grab without a target
+  // holds its point where it is, and a grip's angle is the turn nearest the block's own (a hand turns a block the
+  // short way).
+  void apply(const Action& action);
   void tip();                      // turn the held top block 180 degrees in the allowed direction
   double tip_end_time() const;     // when the last tip finishes
   void break_hinge(int k);
   void join_hinge(int k);
-  double poke(int block, const Vec2& point, const Vec2& impulse);  // impulse at a world point; returns dKE
+  // An impulse at a world point (none: the block's centre); returns dKE.
+  double poke(int block, const std::optional<Vec2>& point, const Vec2& impulse);
   void push(int block, const Vec2& local_point, const Vec2& force, double duration);
   // A user's hand on a block: the point `local` of the block (in its frame) is pulled toward the world point
   // `target` by a critically damped spring-damper and, when `hold_angle`, the block is turned toward `angle` by a
@@ -144,7 +144,6 @@ class Ladder {
   bool held() const;
   double hinge_measure(int k) const;  // s of the class comment (> 0 means inside a forbidden quadrant)
   double energy() const { return world_.kinetic_energy() + world_.potential_energy(); }
-  std::vector<Ribbon> ribbons() const;  // computed on demand, only for drawing
   std::vector<Event> take_events();
   const core::World& world() const { return world_; }
   core::World& world() { return world_; }
@@ -198,6 +197,7 @@ class Ladder {
   std::uint64_t s_cache_version_ = 0, s_cache_structure_ = 0;
   bool s_cache_valid_ = false;
   Grip& grip_of(int block);
+  double nearest_turn(double angle, int block) const;
 };
 
 }  // namespace ladder::model

@@ -710,22 +710,32 @@ TimedCommand read_entry(const toml::table& e, const Site& s, int blocks) {
   const toml::node* command = e.get("command");
   if (!command) s.fail(e, s.name + " needs a command (tip, poke, push, break or join)");
   const std::string_view choices = key_def("timeline.command").choices;
-  c.command = std::string(split(choices, '|').at(to_choice(*command, s.field("command"), choices)));
+  const std::string_view name = split(choices, '|').at(to_choice(*command, s.field("command"), choices));
   const toml::node* t = e.get("t");
   if (!t) s.fail(e, s.name + " needs a time t [s]");
   c.t = to_number(*t, s.field("t"), key_def("timeline.t").range);
-  check_fields(e, s, command_def(c.command));
+  check_fields(e, s, command_def(name));
 
+  // The fields each command needs were required by check_fields; the optional `at` defaults to the centre.
   const Range index{0, static_cast<double>(blocks), false, true};  // blocks and hinges are both 0 .. blocks-1
-  if (const toml::node* n = e.get("block")) c.block = to_int(*n, s.field("block"), index);
-  if (const toml::node* n = e.get("hinge")) c.hinge = to_int(*n, s.field("hinge"), index);
-  if (const toml::node* n = e.get("impulse")) c.impulse = to_vec2(*n, s.field("impulse"));
-  if (const toml::node* n = e.get("force")) c.force = to_vec2(*n, s.field("force"));
-  if (const toml::node* n = e.get("duration"))
-    c.duration = to_number(*n, s.field("duration"), key_def("timeline.duration").range);
-  if (const toml::node* n = e.get("at")) {
-    c.at = to_vec2(*n, s.field("at"));
-    c.has_at = true;
+  const auto integer = [&](const char* f) { return to_int(*e.get(f), s.field(f), index); };
+  const auto pair = [&](const char* f) { return to_vec2(*e.get(f), s.field(f)); };
+  const toml::node* at = e.get("at");
+  if (name == "tip") {
+    c.action = model::Tip{};
+  } else if (name == "poke") {
+    const int block = integer("block");
+    const core::Vec2 impulse = pair("impulse");
+    c.action = model::Poke{block, impulse, at ? std::optional(pair("at")) : std::nullopt};
+  } else if (name == "push") {
+    const int block = integer("block");
+    const core::Vec2 force = pair("force");
+    const double duration = to_number(*e.get("duration"), s.field("duration"), key_def("timeline.duration").range);
+    c.action = model::Push{block, force, at ? pair("at") : core::Vec2::Zero(), duration};
+  } else if (name == "break") {
+    c.action = model::Break{integer("hinge")};
+  } else {
+    c.action = model::Join{integer("hinge")};
   }
   return c;
 }

@@ -16,17 +16,11 @@
 
 namespace ladder::scene {
 
+// A scripted command of the timeline, and where in the file it was written (its origin, for messages).
 struct TimedCommand {
-  double t = 0;                // [s] sim time at which it is applied
-  std::string command;         // "tip" | "poke" | "push" | "break" | "join"
-  int block = -1;              // poke, push
-  int hinge = -1;              // break, join
-  core::Vec2 impulse{0, 0};    // poke [N s]
-  core::Vec2 at{0, 0};         // poke: world point [m]; push: point in the block's frame [m]
-  bool has_at = false;         // false: the block's centre (resolved by the caller)
-  core::Vec2 force{0, 0};      // push [N]
-  double duration = 0;         // push [s]
-  std::string where;           // "file:line:column" of the entry, for messages
+  double t = 0;         // [s] sim time at which it is applied
+  model::Action action;  // tip, poke, push, break or join
+  std::string where;     // "file:line:column" of the entry
 };
 
 struct Scene {

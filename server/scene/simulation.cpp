@@ -8,25 +8,6 @@ namespace ladder::scene {
 
 Simulation::Simulation(const Scene& scene) : scene_(scene), ladder_(scene.ladder, scene.options), dt_(scene.dt) {}
 
-void Simulation::apply(const TimedCommand& c) {
-  model::Ladder& l = ladder_;
-  if (c.command == "tip") {
-    l.tip();
-  } else if (c.command == "poke") {
-    l.check_block(c.block);  // before its centre is looked up
-    const core::Vec2 at = c.has_at ? c.at : l.block_centre(c.block);
-    l.poke(c.block, at, c.impulse);
-  } else if (c.command == "push") {
-    l.push(c.block, c.has_at ? c.at : core::Vec2::Zero(), c.force, c.duration);
-  } else if (c.command == "break") {
-    l.break_hinge(c.hinge);
-  } else if (c.command == "join") {
-    l.join_hinge(c.hinge);
-  } else {
-    throw std::invalid_argument("unknown command '" + c.command + "'");
-  }
-}
-
 void Simulation::set(const std::string& setting) {
   Scene changed = with_live_setting(scene_, setting);
   if (changed.dt != dt_) {  // the step count restarts from now
@@ -44,7 +25,7 @@ void Simulation::step() {
   while (next_ < timeline.size() && timeline[next_].t <= time() + 0.5 * dt_) {
     const TimedCommand& c = timeline[next_++];
     try {
-      apply(c);
+      ladder_.apply(c.action);
     } catch (const std::invalid_argument& e) {
       refusals_.push_back({time(), c.where, e.what()});
     }

@@ -1,5 +1,5 @@
 // A running scene: the ladder, its fixed time step and its scripted timeline. The one simulation path shared by
-// the offline runner and the real-time server: both call step() and apply().
+// the offline runner and the real-time server: both call step(), and act on ladder() (Ladder::apply).
 #pragma once
 
 #include "scene/scene.hpp"
@@ -25,8 +25,6 @@ class Simulation {
   // Advances one time step of dt (in scene().substeps equal steps), first applying every timeline command due by
   // the start of the step.
   void step();
-  // Applies a command now. Throws std::invalid_argument with the reason when it cannot be done; then nothing changed.
-  void apply(const TimedCommand& command);
   // Applies a live setting "key=value" (see with_live_setting); throws SceneError, and then nothing changed.
   void set(const std::string& setting);
 

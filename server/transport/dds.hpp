@@ -82,7 +82,8 @@ class Qos {
 // The QoS of each topic (docs/server.md, "Topics"); writer and reader of a topic use the same profile.
 enum class Profile {
   SceneInfo,   // reliable, transient-local, keep-last 1
-  State,       // best-effort, keep-last 1, transient-local (the writer side is reliable for late joiners, see .cpp)
+  State,       // reliable, keep-last 1, transient-local (both sides: late joiners get the latest; a slow reader is
+               // skipped ahead, never waited for: see .cpp)
   Command,     // reliable, keep-all
   CommandAck,  // reliable, keep-last kAckDepth (a writer that never waits for a reader, see .cpp)
   Event,       // reliable, keep-last 64

@@ -136,37 +136,26 @@ TEST_F(Server, EveryCommandKindIsAcceptedWhenValid) {
   EXPECT_NE(li->options.find("sim.adaptive=false\n"), std::string::npos) << li->options;
 }
 
+// Refusals over the wire: the ack carries the reason and the published state stays as it was. One or two of each
+// layer (the ladder, the server's limits, the scene's checks, the session's verbs); every reason, word for word,
+// is checked in-process by session_rules_test.cpp.
 TEST_F(Server, InvalidCommandsAreRefusedWithAReasonAndChangeNothing) {
   start();
   const client::State s = pause();
-  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
   expect_refused(cmd::poke(99, 0.001, 0), "no block 99", s);
-  expect_refused(cmd::poke(-1, 0.001, 0), "no block -1", s);
   expect_refused(cmd::poke(2, nan, 0), "not a finite number", s);
-  expect_refused(cmd::push(2, inf, 0, 0.1), "not a finite number", s);
   const client::State held = expect_accepted(cmd::grab(4));
   ASSERT_EQ(held.grips.size(), 1u);
   expect_refused(cmd::drag_pose(4, 0, -0.2, nan), "the angle is nan", held);
   expect_refused(cmd::release(2), "block 2 is not grabbed", held);
   expect_accepted(cmd::release(4));
   expect_refused(cmd::poke(2, 1e6, 0), "beyond the limit of 1 N s", s);
-  expect_refused(cmd::push(2, 5000, 0, 0.1), "beyond the limit of 100 N", s);
-  expect_refused(cmd::push(2, 1, 0, -1), "duration", s);
   expect_refused(cmd::poke_at(2, 0.001, 0, 5.0, 5.0), "outside the block", s);
-  expect_refused(cmd::grab(0), "held by the hand", s);
-  expect_refused(cmd::grab(9), "no block 9", s);
-  expect_refused(cmd::grab_to(3, 1e9, 0), "beyond the reach", s);
-  expect_refused(cmd::drag(3, 0, 0), "nothing is grabbed", s);
-  expect_refused(cmd::drag_pose(3, 0, 0, nan), "the angle is nan", s);
-  expect_refused(cmd::release(3), "nothing is grabbed", s);
-  expect_refused(cmd::break_hinge(6), "no hinge 6", s);
-  expect_refused(cmd::join_hinge(3), "is not broken", s);
   expect_refused(cmd::set("solver.tolerence=1e-9"), "solver.tolerance", s);  // did-you-mean
   expect_refused(cmd::set("ladder.blocks=3"), "cannot change while the ladder runs", s);
   expect_refused(cmd::set("sim.dt=-1"), "sim.dt", s);
-  expect_refused(cmd::set("server.physics_rate=10"), "cannot change while the server runs", s);
   expect_refused(cmd::load("../../etc/passwd"), "not permitted", s);
-  expect_refused(cmd::load("no-such-scene"), "no scene 'no-such-scene'", s);
   expect_refused(cmd::pause(), "already paused", s);
   // (A command kind outside the enum cannot be sent: Cyclone refuses to serialise it, and a receiver drops it.)
 

@@ -1,14 +1,15 @@
 // The server's command rules without a network: every command parameter and live setting has a range, a value
 // outside it is refused with the key, the value and the range, and the refusal changes nothing. Values at the ends
 // of the ranges are accepted and the simulation keeps stepping.
+#include "classic_session.hpp"
 #include "daemon/session.hpp"
+#include "daemon/wire.hpp"
 #include "transport/dds.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -16,17 +17,6 @@ namespace ladder::daemon {
 namespace {
 
 using core::Vec2;
-
-const std::string kScenes = std::string(LADDER_SOURCE_DIR) + "/config/scenes";
-constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// The classic scene without its scripted tip, so that only the test's commands act on it.
-std::unique_ptr<Session> classic() {
-  scene::Scene s = scene::load_scene(kScenes + "/classic.toml");
-  s.timeline.clear();
-  return std::make_unique<Session>(s, kScenes, Limits{}, Rates{});
-}
 
 ladder_msg_Command command(ladder_msg_CommandKind kind) {
   ladder_msg_Command c{};
@@ -74,7 +64,7 @@ Snapshot snapshot(const Session& s) {
 // Applies c, expects exactly `reason`, and that nothing changed.
 void expect_refused(Session& s, const ladder_msg_Command& c, const std::string& reason) {
   const Snapshot before = snapshot(s);
-  const Outcome o = s.apply(c);
+  const Outcome o = s.apply(fields_of(c));
   EXPECT_FALSE(o.accepted) << "accepted; expected: " << reason;
   EXPECT_EQ(o.reason, reason);
   const Snapshot after = snapshot(s);
@@ -87,7 +77,7 @@ void expect_refused(Session& s, const ladder_msg_Command& c, const std::string& 
 }
 
 void expect_accepted(Session& s, const ladder_msg_Command& c) {
-  const Outcome o = s.apply(c);
+  const Outcome o = s.apply(fields_of(c));
   EXPECT_TRUE(o.accepted) << o.reason;
 }
 
@@ -258,7 +248,7 @@ TEST(SessionRanges, TheEndsOfTheRangesStepWithoutFailing) {
   }
   // The largest poke and the largest push, at a block's corner.
   for (const ladder_msg_CommandKind kind : {ladder_msg_POKE, ladder_msg_PUSH}) {
-    SCOPED_TRACE(to_string(kind));
+    SCOPED_TRACE(kind_name(kind));
     auto s = classic();
     ladder_msg_Command c = command(kind);
     c.block = 5;
@@ -289,7 +279,7 @@ TEST(SessionReset, AfterAFailedStepResetRestoresTheScenesSettings) {
   const std::string own = scene::live_settings(s->sim().scene());
   expect_accepted(*s, set("damping.linear=0.5"));
   // Without a failure a reset keeps the live settings, and says nothing.
-  Outcome o = s->apply(command(ladder_msg_RESET));
+  Outcome o = s->apply(fields_of(command(ladder_msg_RESET)));
   EXPECT_TRUE(o.accepted);
   EXPECT_EQ(o.reason, "");
   EXPECT_NE(scene::live_settings(s->sim().scene()).find("damping.linear=0.5\n"), std::string::npos);
@@ -297,7 +287,7 @@ TEST(SessionReset, AfterAFailedStepResetRestoresTheScenesSettings) {
   s->fail();
   EXPECT_TRUE(s->paused());
   EXPECT_TRUE(s->failed());
-  o = s->apply(command(ladder_msg_RESET));
+  o = s->apply(fields_of(command(ladder_msg_RESET)));
   EXPECT_TRUE(o.accepted);
   EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
   EXPECT_EQ(scene::live_settings(s->sim().scene()), own);
@@ -324,7 +314,7 @@ TEST(SessionReset, ARealStepFailureIsUndoneByAReset) {
   if (!failed) GTEST_SKIP() << "no step failed with these settings: the reset path is covered by the test above";
   EXPECT_TRUE(s.paused());
   EXPECT_TRUE(s.failed());
-  const Outcome o = s.apply(command(ladder_msg_RESET));
+  const Outcome o = s.apply(fields_of(command(ladder_msg_RESET)));
   EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
   EXPECT_NE(scene::live_settings(s.sim().scene()).find("damping.hinge=0\n"), std::string::npos);
   expect_accepted(s, command(ladder_msg_RESUME));

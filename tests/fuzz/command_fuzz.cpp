@@ -7,6 +7,7 @@
 // as the server does) are outcomes, not findings.
 #include "daemon/builtin_scene.hpp"
 #include "daemon/session.hpp"
+#include "daemon/wire.hpp"
 #include "scene/scene.hpp"
 
 #include <algorithm>
@@ -141,7 +142,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Bytes in(data, size);
   for (int n = 0; n < kMaxCommands && !in.empty(); ++n) {
     const ladder_msg_Command c = command(in);
-    session.apply(c);  // accepted or refused with a reason: both fine here, only what is published is checked
+    session.apply(ladder::daemon::fields_of(c));  // accepted or refused with a reason: both fine here, only what is published is checked
     check_published(session, c);
     const int steps = in.take<std::uint8_t>() % (kMaxStepsAfter + 1);
     for (int i = 0; i < steps; ++i) {

@@ -239,9 +239,9 @@ TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
     ASSERT_EQ(before.bodies.size(), after.bodies.size());
     for (size_t b = 0; b < before.bodies.size(); ++b) EXPECT_EQ(before.bodies[b].x, after.bodies[b].x);
   };
-  expect_refused([&] { l.poke(7, {0, 0}, {0.01, 0}); }, "no block 7");
-  expect_refused([&] { l.poke(0, {0, 0}, {0.01, 0}); }, "held");
-  expect_refused([&] { l.poke(2, {0, 0}, {std::nan(""), 0}); }, "finite");
+  expect_refused([&] { l.poke(7, core::Vec2(0, 0), {0.01, 0}); }, "no block 7");
+  expect_refused([&] { l.poke(0, core::Vec2(0, 0), {0.01, 0}); }, "held");
+  expect_refused([&] { l.poke(2, core::Vec2(0, 0), {std::nan(""), 0}); }, "finite");
   expect_refused([&] { l.break_hinge(9); }, "no hinge 9");
   expect_refused([&] { l.join_hinge(2); }, "not broken");
   expect_refused([&] { l.push(1, {0, 0}, {1, 0}, -1); }, "duration");
@@ -251,27 +251,6 @@ TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
   expect_refused([&] { l.break_hinge(3); }, "already broken");
   for (int i = 0; i < 2000; ++i) sim.step();  // the lower blocks fall away
   expect_refused([&] { l.join_hinge(3); }, "capture distance");
-}
-
-// Ribbons are derived for drawing only: one per unbroken hinge, wrapping its hinged corner, and the side that shows
-// the two outer ribbons swaps at each flip-flop (paper, Figure 3).
-TEST(Ribbons, FollowTheHinges) {
-  scene::Simulation sim(shipped("classic.toml"));
-  model::Ladder& l = sim.ladder();
-  auto ribbons = l.ribbons();
-  ASSERT_EQ(ribbons.size(), 5u);
-  for (const model::Ribbon& r : ribbons) {
-    const int c = l.hinges()[r.hinge].corner;
-    EXPECT_LT((r.points[0] - l.corner(r.hinge - 1, c ^ 1)).norm(), 1e-15);
-    EXPECT_LT((r.points[1] - l.corner(r.hinge, c)).norm(), 1e-15);
-    EXPECT_LT((r.points[2] - l.corner(r.hinge, c ^ 1)).norm(), 1e-15);
-  }
-  const bool outer_before = ribbons[0].outer_on_a;
-  while (l.hinges()[1].flips == 0 && sim.time() < 5) sim.step();
-  ASSERT_EQ(l.hinges()[1].flips, 1);
-  EXPECT_NE(l.ribbons()[0].outer_on_a, outer_before);
-  l.break_hinge(3);
-  EXPECT_EQ(l.ribbons().size(), 4u);
 }
 
 // Pinned, not held: the top block cannot be tipped by a hand.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <variant>
 #include <vector>
 
 namespace ladder::scene {
@@ -57,7 +58,7 @@ TEST(ShippedScenes, ClassicHasTheDocumentedValues) {
   EXPECT_EQ(s.options.solver, core::SolverKind::Newton);
   EXPECT_DOUBLE_EQ(s.options.tolerance, 1e-12);
   ASSERT_EQ(s.timeline.size(), 1u);
-  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_TRUE(std::holds_alternative<model::Tip>(s.timeline[0].action));
   EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
   EXPECT_EQ(s.timeline[0].where.rfind(scene_path("classic") + ":", 0), 0u) << s.timeline[0].where;
 }
@@ -72,9 +73,9 @@ TEST(ShippedScenes, DoubleRippleTipsTwice) {
   EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
   ASSERT_EQ(s.timeline.size(), 2u);
-  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_TRUE(std::holds_alternative<model::Tip>(s.timeline[0].action));
   EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
-  EXPECT_EQ(s.timeline[1].command, "tip");
+  EXPECT_TRUE(std::holds_alternative<model::Tip>(s.timeline[1].action));
   EXPECT_DOUBLE_EQ(s.timeline[1].t, 0.9);
   // The tip back starts after the first tip has finished.
   EXPECT_GE(s.timeline[1].t, s.timeline[0].t + s.ladder.tip_duration);
@@ -89,7 +90,7 @@ TEST(ShippedScenes, LongHasAThousandBlocks) {
   EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
   ASSERT_EQ(s.timeline.size(), 1u);
-  EXPECT_EQ(s.timeline[0].command, "tip");
+  EXPECT_TRUE(std::holds_alternative<model::Tip>(s.timeline[0].action));
   EXPECT_DOUBLE_EQ(s.timeline[0].t, 0.5);
 }
 
@@ -239,27 +240,26 @@ hinge = 0
                               "<string>");
   ASSERT_EQ(s.timeline.size(), 4u);
   const auto& j = s.timeline[0];
-  EXPECT_EQ(j.command, "join");
-  EXPECT_EQ(j.hinge, 0);
+  ASSERT_TRUE(std::holds_alternative<model::Join>(j.action));
+  EXPECT_EQ(std::get<model::Join>(j.action).hinge, 0);
   EXPECT_EQ(j.where, "<string>:19:1");
   const auto& b = s.timeline[1];  // equal t: file order kept
-  EXPECT_EQ(b.command, "break");
-  EXPECT_EQ(b.hinge, 2);
-  EXPECT_EQ(b.block, -1);
+  ASSERT_TRUE(std::holds_alternative<model::Break>(b.action));
+  EXPECT_EQ(std::get<model::Break>(b.action).hinge, 2);
   EXPECT_EQ(b.where, "<string>:10:1");
-  const auto& p = s.timeline[2];
-  EXPECT_EQ(p.command, "poke");
+  ASSERT_TRUE(std::holds_alternative<model::Poke>(s.timeline[2].action));
+  const auto& p = std::get<model::Poke>(s.timeline[2].action);
   EXPECT_EQ(p.block, 1);
   EXPECT_EQ(p.impulse, core::Vec2(0, 1e-3));
-  EXPECT_FALSE(p.has_at);
+  EXPECT_FALSE(p.at.has_value()) << "no `at`: the block's centre";
   const auto& u = s.timeline[3];
-  EXPECT_EQ(u.command, "push");
   EXPECT_EQ(u.t, 2.0);
-  EXPECT_EQ(u.block, 3);
-  EXPECT_EQ(u.force, core::Vec2(0.5, 0));
-  EXPECT_EQ(u.duration, 0.25);
-  EXPECT_TRUE(u.has_at);
-  EXPECT_EQ(u.at, core::Vec2(0, 0.01));
+  ASSERT_TRUE(std::holds_alternative<model::Push>(u.action));
+  const auto& push = std::get<model::Push>(u.action);
+  EXPECT_EQ(push.block, 3);
+  EXPECT_EQ(push.force, core::Vec2(0.5, 0));
+  EXPECT_EQ(push.duration, 0.25);
+  EXPECT_EQ(push.at, core::Vec2(0, 0.01));
   EXPECT_EQ(u.where, "<string>:3:1");
 }
 
