@@ -317,7 +317,7 @@ void World::rebuild() {
       throw std::invalid_argument("a hinge between particles " + std::to_string(jt.pa) + " and " +
                                   std::to_string(jt.pb) + " would join a body to itself (a closed loop)");
     if (bodies[a].kinematic && bodies[b].kinematic) continue;  // nothing can move: no equation to solve
-    rows.push_back({a, b, Vec2::Zero(), Vec2::Zero(), pa, pb, static_cast<int>(j), false, false, false, false, false});
+    rows.push_back({Vec2::Zero(), Vec2::Zero(), a, b, pa, pb, static_cast<int>(j), false, false, false, false, false});
   }
   order_rows(bodies, rows);  // may throw: nothing is committed yet
   // Commit.

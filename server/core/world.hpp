@@ -102,6 +102,7 @@ struct BodyState {
   double th = 0;    // unwrapped angle [rad]
   double w = 0;     // [rad/s]
 };
+static_assert(sizeof(BodyState) == 64, "BodyState is one cache line");
 
 // A force a user applies at a point fixed in a part (given in the part's frame) until a time.
 struct AppliedForce {
@@ -230,7 +231,6 @@ class World {
   int body_count() const { return static_cast<int>(bodies_.size()); }
   int body_of_part(int part) const { return parts_[part].body; }
   int part_of_particle(int p) const { return particles_[p].part; }
-  double particle_mass(int p) const { return particles_[p].mass; }
   Vec2 particle_local(int p) const { return particles_[p].local; }  // in the part frame, from the part COM
   std::vector<int> body_parts(int body) const;
   Vec2 particle_position(int p) const;
@@ -293,8 +293,8 @@ class World {
   // rows[k].a == rows[k-1].b exactly when link_prev is set. The last four flags are derived from the others (in
   // rebuild()) so that the sweeps test one byte instead of loading the next row and both bodies: 64 bytes in all.
   struct Row {
+    Vec2 ra, rb;  // first: Eigen aligns a Vec2 to 16 bytes, and two ints before it would pad the row to 80
     int a, b;
-    Vec2 ra, rb;
     int part_a, part_b;
     int joint;
     bool link_prev;
@@ -303,6 +303,7 @@ class World {
     bool corrects_b;   // body b is dynamic
     bool kinematic_side;  // body a or b is kinematic: the row's impulses are recorded for the work its drive does
   };
+  static_assert(sizeof(Row) == 64, "a Row is one cache line");
 
   // topology.cpp
   void rebuild();

@@ -129,7 +129,7 @@ int run_offline(const OfflineOptions& o) {
   }
   const double wall = std::chrono::duration<double>(Clock::now() - started).count();
   const double rate = stepping > 0 ? static_cast<double>(sim->steps()) * blocks / stepping : 0.0;
-  const double max_error = std::max(sim->max_hinge_error(), sampled_error);
+  const double max_error = std::max(sim->max_step_residual(), sampled_error);
   json summary{{"scene", sc.name},
                {"failed", false},
                {"blocks", blocks},

@@ -259,7 +259,7 @@ void Physics::publish_stats(Clock::time_point now) {
   s.solver_iterations = static_cast<std::uint32_t>(sim.ladder().world().last_step().iterations);
   s.solver_residual = sim.ladder().world().last_step().residual;
   s.energy = sim.ladder().energy();
-  s.max_hinge_error = sim.max_hinge_error();
+  s.max_hinge_error = sim.max_step_residual();
   s.commands_received = sh_.received.load();
   s.commands_accepted = accepted_;
   s.commands_refused = refused_;

@@ -33,7 +33,7 @@ void Simulation::step() {
   const int substeps = scene_.substeps;
   for (int i = 0; i < substeps; ++i) {
     ladder_.advance(dt_ / substeps);
-    max_hinge_error_ = std::max(max_hinge_error_, ladder_.world().last_step().residual);
+    max_step_residual_ = std::max(max_step_residual_, ladder_.world().last_step().residual);
   }
   ++steps_;
   ++clock_steps_;

@@ -38,9 +38,10 @@ class Simulation {
   const model::Ladder& ladder() const { return ladder_; }
   std::vector<model::Event> take_events() { return ladder_.take_events(); }
   std::vector<Refusal> take_refusals() { return std::exchange(refusals_, {}); }
-  // Largest hinge position error at the end of any step (of dt / substeps) so far [m] (the solver's own measure, free
-  // to keep; the adaptive step's sub-steps inside a step are not looked at one by one).
-  double max_hinge_error() const { return max_hinge_error_; }
+  // Largest hinge solve residual at the end of any step (of dt / substeps) so far [m]: the solver's own measure of the
+  // hinge gaps, free to keep (the adaptive step's sub-steps inside a step are not looked at one by one). Not
+  // core::World::max_hinge_error(), the gaps of the current state measured anew.
+  double max_step_residual() const { return max_step_residual_; }
 
  private:
   Scene scene_;
@@ -50,7 +51,7 @@ class Simulation {
   std::uint64_t steps_ = 0;
   double clock_base_ = 0;            // time() when dt last changed
   std::uint64_t clock_steps_ = 0;    // steps since then
-  double max_hinge_error_ = 0;
+  double max_step_residual_ = 0;
   std::vector<Refusal> refusals_;
 };
 

@@ -48,7 +48,7 @@ std::string set_dt(double dt) {
 
 // The free chain (N = 2, no damping) for 1 s: the largest block-angle error against RK4 at dt = 1/64 ms, at
 // dt = 1, 0.5 and 0.25 ms. Halving the step divides the error by 2^p for a method of order p. Bounds: first order
-// (euler, symplectic_euler, projection, reduced) 1.6 to 2.6; second (rattle) 3.4 to 4.6; fourth (rk4) 12 to 20.
+// (euler, symplectic_euler, projection, reduced) 1.6 to 2.6; second (rattle, midpoint) 3.4 to 4.6; fourth (rk4) 12 to 20.
 // Measured: euler 2.4, 2.2; symplectic_euler 2.0, 2.0; projection 1.7, 1.8; reduced 2.0, 2.1; rattle 4.0, 4.0;
 // rk4 17.6, 16.6. The fast
 // projection's ratio tends to 2 from below: its numerical damping is a first-order error that is still large at
