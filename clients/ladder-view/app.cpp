@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <utility>
 
 namespace ladder::view {
 
@@ -39,6 +40,31 @@ std::string Feed::why_undrawable() const {
   if (!i) return "no SceneInfo has come";
   return "the States are of scene generation " + std::to_string(s->generation) + " but the SceneInfo of generation " +
          std::to_string(i->generation) + " (is another program publishing under this sim id?)";
+}
+
+void Outbox::send(const ladder_msg_Command& c, const std::string& what) {
+  if (!client_.wait_for_server(client::Millis(0))) {
+    ready_.push_back(what + ": not sent, no server");
+    return;
+  }
+  pending_.push_back({client_.send(c), what, std::chrono::steady_clock::now()});
+}
+
+std::vector<std::string> Outbox::take() {
+  constexpr auto kAnswerTimeout = std::chrono::seconds(5);
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    const auto a = client_.wait_ack(it->id, client::Millis(0));
+    if (!a && std::chrono::steady_clock::now() - it->sent < kAnswerTimeout) {
+      ++it;
+      continue;
+    }
+    char buf[96];
+    if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
+    ready_.push_back(it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer"));
+    it = pending_.erase(it);
+  }
+  if (!ready_.empty()) last_ = ready_.back();
+  return std::exchange(ready_, {});
 }
 
 bool found_server(const Options& o, client::Client& c) {

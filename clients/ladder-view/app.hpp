@@ -62,6 +62,30 @@ class Feed {
   Clock::time_point news_, drawable_;
 };
 
+// Commands sent from a key or a click, their answers picked up later without waiting (the window and the terminal
+// must stay responsive while the server is away).
+class Outbox {
+ public:
+  explicit Outbox(client::Client& c) : client_(c) {}
+  // Sends `c` now; `what` names it in the answer ("tip", "poke block 3"). With no server: an answer at once.
+  void send(const ladder_msg_Command& c, const std::string& what);
+  // The answers that came (or timed out) since the last call, e.g. "tip: accepted at t = 1.234 s"; the latest also
+  // stays in last().
+  std::vector<std::string> take();
+  const std::string& last() const { return last_; }
+
+ private:
+  struct Pending {
+    std::uint64_t id;
+    std::string what;
+    std::chrono::steady_clock::time_point sent;
+  };
+  client::Client& client_;
+  std::vector<Pending> pending_;
+  std::vector<std::string> ready_;
+  std::string last_;
+};
+
 int run_png(const Options& o);
 int run_ascii(const Options& o);
 int run_window(const Options& o);

@@ -1,16 +1,26 @@
 // --png FILE [--at SIMTIME]: one snapshot of the first state at or after SIMTIME (the latest state without --at).
 #include "app.hpp"
 
+#include <cstdio>
 #include <iostream>
+#include <string>
 
 namespace ladder::view {
+
+namespace {
+std::string fixed3(double t) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", t);
+  return buf;
+}
+}  // namespace
 
 int run_png(const Options& o) {
   client::Client c(o.domain, o.sim_id);
   if (!found_server(o, c)) return kNoServer;
   // Wait for the state as long as the server keeps talking (a far --at may take a while).
   Feed feed(c);
-  bool told = false;
+  bool told = false, first = true;
   client::State state;
   client::SceneInfo info;
   while (true) {
@@ -19,8 +29,13 @@ int run_png(const Options& o) {
     if (s && (!o.at || s->sim_time >= *o.at)) {
       state = *s;  // this state and its scene, whatever comes while the Stats are awaited below
       info = *feed.info();
+      // The first state seen is already later than --at: the server was past it when the viewer came.
+      if (o.at && first && s->sim_time > *o.at)
+        std::cerr << "ladder-view: ladderd '" << o.sim_id << "' was already at t = " << fixed3(s->sim_time)
+                  << " s, past --at " << *o.at << " s; the snapshot is of t = " << fixed3(s->sim_time) << " s\n";
       break;
     }
+    first = first && !s;
     if (feed.undrawable() > o.timeout) {
       std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
                 << " s: " << feed.why_undrawable() << "\n";

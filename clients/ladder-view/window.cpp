@@ -20,7 +20,6 @@ namespace cmd = client::cmd;
 constexpr double kPokeImpulse = 0.005;  // [N s] ladderctl's default poke
 constexpr double kDragSlop = 4;         // [px] a press that moves farther is a drag, not a click
 constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at most ~33 a second
-constexpr auto kAnswerTimeout = std::chrono::seconds(5);
 
 const std::vector<std::string> kHelp = {
     "click: poke  drag a block: grab and move it  drag elsewhere / right drag: pan  wheel: zoom",
@@ -183,10 +182,10 @@ class Viewer {
                     follow_ ? ", following the ripple" : "");
       hud.lines.emplace_back(buf);
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      if (!answer_.empty()) hud.lines.push_back(answer_);
+      if (!outbox_.last().empty()) hud.lines.push_back(outbox_.last());
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
-      hud.lines.push_back(answer_.empty() ? "o: stats and keys" : answer_);
+      hud.lines.push_back(outbox_.last().empty() ? "o: stats and keys" : outbox_.last());
     }
     if (s)
       drawn_ = draw(screen_.cairo(), camera_, *feed_.info(), *s, hud);
@@ -199,28 +198,13 @@ class Viewer {
   }
 
   // --- commands ---
-  void send(const ladder_msg_Command& c, const std::string& what) {
-    if (!client_.wait_for_server(client::Millis(0))) {
-      answer_ = what + ": not sent, no server";
-      return;
-    }
-    pending_.push_back({client_.send(c), what, Clock::now()});
-  }
+  void send(const ladder_msg_Command& c, const std::string& what) { outbox_.send(c, what); }
 
   void take_answers() {
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      const auto a = client_.wait_ack(it->id, client::Millis(0));
-      if (!a && Clock::now() - it->sent < kAnswerTimeout) {
-        ++it;
-        continue;
-      }
-      char buf[96];
-      if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
-      answer_ = it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer");
-      std::printf("ladder-view: %s\n", answer_.c_str());
+    for (const std::string& a : outbox_.take()) {
+      std::printf("ladder-view: %s\n", a.c_str());
       std::fflush(stdout);
       dirty_ = true;
-      it = pending_.erase(it);
     }
   }
 
@@ -362,12 +346,6 @@ class Viewer {
     mode_ = Mode::None;
   }
 
-  struct Pending {
-    std::uint64_t id;
-    std::string what;
-    Clock::time_point sent;
-  };
-
   const Options& o_;
   Screen& screen_;
   client::Client client_;
@@ -378,8 +356,7 @@ class Viewer {
   std::string scene_name_;
   std::vector<std::uint32_t> flips_;
   std::optional<Point> ripple_;
-  std::vector<Pending> pending_;
-  std::string answer_;
+  Outbox outbox_{client_};
   Clock::time_point drawn_at_{}, dragged_at_{};
   double draw_ms_ = 0;
   int drawn_ = 0, hover_ = -1;

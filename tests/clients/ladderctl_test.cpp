@@ -1,11 +1,9 @@
 // ladderctl against a real ladderd over Cyclone DDS on loopback: exit codes, printed answers, the timeout
 // message, and the interactive prompt driven through a pseudo-terminal.
 #include "process.hpp"
+#include "pty.hpp"
 
 #include <gtest/gtest.h>
-
-#include <pty.h>
-#include <sys/select.h>
 
 #include <chrono>
 #include <cstdio>
@@ -76,7 +74,10 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"poke", 2, "BLOCK is required"},
       {"drag 3 1,x", 2, "is not a list of numbers"},
       {"watch everything", 2, "WHAT"},
-      {"frobnicate", 2, "frobnicate"},
+      {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
+      {"watch state --kinds lock", 2, "only watch events takes --kinds"},
+      {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, lock, unlock, break, join, "
+                                            "solver_warning)"},
   };
   for (const Case& c : cases) {
     const Result r = ctl(c.args);
@@ -108,46 +109,54 @@ TEST_F(Ladderctl, WatchEventsPrintsTheRippleAsJson) {
   EXPECT_NE(r.output.find("\"kind\":\"flip_flop\",\"hinge\":5"), std::string::npos) << r.output;
 }
 
-// The prompt through a pseudo-terminal: "ti" + Tab completes to "tip", Enter sends it, the answer is printed.
-TEST_F(Ladderctl, PromptCompletesAndTipsTheLadder) {
-  int fd = -1;
-  const pid_t pid = forkpty(&fd, nullptr, nullptr, nullptr);
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    const std::string domain = std::to_string(domain_);
-    execl(kLadderctl.c_str(), kLadderctl.c_str(), "--domain", domain.c_str(), "--sim-id", sim_id_.c_str(),
-          "--timeout", "15", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  std::string screen;
-  const auto read_until = [&](const std::string& words, double seconds) {
-    const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
-    while (screen.find(words) == std::string::npos && Clock::now() < deadline) {
-      fd_set set;
-      FD_ZERO(&set);
-      FD_SET(fd, &set);
-      timeval tv{0, 100000};
-      if (select(fd + 1, &set, nullptr, nullptr, &tv) > 0) {
-        char buf[1024];
-        const ssize_t n = read(fd, buf, sizeof buf);
-        if (n <= 0) break;
-        screen.append(buf, static_cast<std::size_t>(n));
-      }
-    }
-    return screen.find(words) != std::string::npos;
-  };
-  ASSERT_TRUE(read_until("ladder> ", 10)) << screen;
-  ASSERT_EQ(write(fd, "ti\t", 3), 3);
+// A mistyped command: the nearest command, then every command, and nothing sent.
+TEST_F(Ladderctl, AMistypedCommandSuggestsTheNearestAndListsThemAll) {
+  const Result r = ctl("tpi");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("ladderctl: unknown command 'tpi'; did you mean 'tip'?\n"
+                          "commands: tip poke push grab drag release break join pause resume step reset set load "
+                          "status watch replay help quit\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(ctl("stat").output.find("did you mean 'status'?"), std::string::npos);  // a prefix
+  EXPECT_EQ(ctl("xyzzy").output.find("did you mean"), std::string::npos);            // nothing near
+  EXPECT_EQ(server_->log().find(" from "), std::string::npos) << "a command reached the server:\n" << server_->log();
+}
+
+// watch events: a heading that says what is watched, then only the kinds asked for (here the ripple's flip-flops,
+// none of the locks and unlocks that come with it).
+TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
+  ASSERT_EQ(ctl("tip").code, 0);
+  const Result r = run("watch events --kinds flip_flop" + where_ + " & pid=$!; sleep 3; kill -INT $pid; wait $pid");
+  EXPECT_NE(r.output.find("events of sim id '" + sim_id_ + "' on DDS domain " + std::to_string(domain_) +
+                          " (only flip_flop) as they happen; hinge k joins blocks k-1 and k (Ctrl-C stops):\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("flip_flop       hinge 5"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(" s  lock "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
+}
+
+// The prompt through a pseudo-terminal: "ti" + Tab completes to "tip", Enter sends it, the answer is printed; an
+// unknown word is named as such; quit exits 0 even after a refused command.
+TEST_F(Ladderctl, PromptCompletesTipsAndQuitsWithZero) {
+  Pty term({kLadderctl, "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "15"}, 100, 30);
+  ASSERT_TRUE(term.started());
+  ASSERT_TRUE(term.read_until("ladder> ", 10)) << term.screen();
+  term.type("ti\t");
   // The line editor redraws the completed word with cursor moves; "p " is the completion's tail.
-  EXPECT_TRUE(read_until("p ", 5)) << "no completion: " << screen;
-  ASSERT_EQ(write(fd, "\r", 1), 1);
+  EXPECT_TRUE(term.read_until("p ", 5)) << "no completion: " << term.screen();
+  term.type("\r");
   // Only "tip" (not "ti") is accepted: the answer proves the completion.
-  EXPECT_TRUE(read_until("accepted at t = ", 20)) << screen;
-  ASSERT_EQ(write(fd, "quit\r", 5), 5);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  close(fd);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << screen;
+  EXPECT_TRUE(term.read_until("accepted at t = ", 20)) << term.screen();
+  term.type("frobnicate\r");
+  EXPECT_TRUE(term.read_until("unknown command 'frobnicate'", 10)) << term.screen();
+  term.type("poke 9\r");
+  EXPECT_TRUE(term.read_until("refused: no block 9", 10)) << term.screen();
+  term.type("quit\r");
+  const auto status = term.wait_exit(20);
+  ASSERT_TRUE(status.has_value()) << term.screen();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << *status << "\n" << term.screen();
 }
 
 }  // namespace

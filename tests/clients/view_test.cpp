@@ -7,6 +7,7 @@
 #include "draw.hpp"
 #include "netns.hpp"
 #include "process.hpp"
+#include "pty.hpp"
 #include "transport/dds.hpp"
 #include "transport/topics.hpp"
 
@@ -18,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <regex>
 #include <thread>
@@ -298,14 +300,95 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
 TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
   const Result r = viewer("--ascii --frames 1 --size 60x40");
   ASSERT_EQ(r.code, 0) << r.output;
-  const std::size_t picture = r.output.find('\n');  // the first line is the heading
-  ASSERT_NE(picture, std::string::npos);
-  EXPECT_NE(r.output.find(sim_id_ + "  t = "), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("6 blocks"), std::string::npos) << r.output;
+  // The heading: what is shown, then (no terminal to type in) how to tip it from elsewhere.
+  const std::size_t picture = r.output.find("tip\n");
+  ASSERT_NE(picture, std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  6 blocks  sim id '" + sim_id_ + "'\n"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("from another terminal: ladderctl --sim-id " + sim_id_ + " --domain " +
+                          std::to_string(domain_) + " tip\n"),
+            std::string::npos)
+      << r.output;
   const std::string art = r.output.substr(picture);
   for (char d = '0'; d <= '5'; ++d) EXPECT_NE(art.find(d), std::string::npos) << "no block " << d << "\n" << art;
   EXPECT_EQ(art.find('6'), std::string::npos) << art;
   EXPECT_GT(std::count(art.begin(), art.end(), '#'), 40) << art;
+}
+
+// The terminal view as a user at an 80x24 terminal sees it (a pty): the heading names the keys, each block's number
+// and every hinge's state are on screen; t tips (the server accepts it), space pauses, q ends it with status 0 and
+// the cursor shown again.
+TEST_F(View, TerminalAt80x24NamesTheKeysTipsPausesAndQuits) {
+  Pty term({kViewer, "--ascii", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "30"}, 80, 24);
+  ASSERT_TRUE(term.started());
+  ASSERT_TRUE(term.read_until("keys: t tip  space pause/resume  s step  r reset  q quit", 30)) << term.screen();
+  // (cut at the terminal's width: the test's sim id is long)
+  ASSERT_TRUE(term.read_until("from another terminal: ladderctl --sim-id " + sim_id_.substr(0, 30), 5))
+      << term.screen();
+  ASSERT_TRUE(term.read_until("hinge  state   flips", 5)) << term.screen();
+  for (int k = 1; k <= 5; ++k)
+    EXPECT_TRUE(term.read_until("    " + std::to_string(k) + "  hinged      0", 5)) << "hinge " << k << "\n"
+                                                                                  << term.screen();
+  // Every frame fits the terminal: no line longer than 80 characters between the cursor moves.
+  const std::string& screen = term.screen();
+  std::size_t longest = 0;
+  for (std::size_t at = 0, nl; (nl = screen.find('\n', at)) != std::string::npos; at = nl + 1) {
+    std::string line = std::regex_replace(screen.substr(at, nl - at), std::regex("\x1b\\[[0-9;?]*[A-Za-z]"), "");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    longest = std::max(longest, line.size());
+  }
+  EXPECT_LE(longest, 80u) << screen;
+  for (char d = '0'; d <= '5'; ++d) EXPECT_NE(screen.find(d), std::string::npos);
+
+  term.type("t");
+  EXPECT_TRUE(term.read_until("tip: accepted at t = ", 20)) << term.screen();
+  EXPECT_TRUE(eventually([&] { return server_->log().find("tip 1 from ") != std::string::npos; }, kAnswer))
+      << server_->log();
+  const std::size_t before_pause = term.screen().size();
+  term.type(" ");
+  EXPECT_TRUE(term.read_until("pause: accepted at t = ", 20, before_pause)) << term.screen();
+  EXPECT_TRUE(term.read_until("PAUSED", 10, before_pause)) << term.screen();
+  EXPECT_TRUE(client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer).has_value());
+
+  term.type("q");
+  const auto status = term.wait_exit(20);
+  ASSERT_TRUE(status.has_value()) << "q did not end the view\n" << term.screen();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << *status;
+  // The cursor, hidden while drawing, is shown again after the last frame.
+  const std::string& all = term.screen();
+  ASSERT_NE(all.rfind("\x1b[?25l"), std::string::npos);
+  EXPECT_GT(all.rfind("\x1b[?25h"), all.rfind("\x1b[?25l")) << all.substr(all.size() > 200 ? all.size() - 200 : 0);
+}
+
+// A hang-up (a closed SSH session), SIGTERM or Ctrl-C ends the terminal view with status 0 and the cursor shown.
+TEST_F(View, TerminalRestoresTheCursorOnEverySignal) {
+  for (const int sig : {SIGHUP, SIGTERM, SIGINT}) {
+    Pty term({kViewer, "--ascii", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "30"}, 80,
+             24);
+    ASSERT_TRUE(term.read_until("keys: t tip", 30)) << term.screen();
+    kill(term.pid(), sig);
+    const auto status = term.wait_exit(20);
+    ASSERT_TRUE(status.has_value()) << strsignal(sig) << " did not end the view";
+    EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << strsignal(sig) << ": status " << *status;
+    const std::string& all = term.screen();
+    EXPECT_GT(all.rfind("\x1b[?25h"), all.rfind("\x1b[?25l")) << strsignal(sig);
+  }
+}
+
+// --at a time the server has already passed: the snapshot is of the state it has, and the viewer says so.
+TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
+  ASSERT_TRUE(client_->wait_state([](const client::State& st) { return st.sim_time > 0.2; }, Millis(30000)));
+  const Result r = viewer("--png " + out_ + ".png --at 0.1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(ladderd '[^']+' was already at t = ([0-9.]+) s, past --at )"
+                                                         R"(0\.1 s; the snapshot is of t = ([0-9.]+) s)")))
+      << r.output;
+  EXPECT_GT(std::stod(m[1]), 0.2);
+  EXPECT_EQ(m[1], m[2]);
+  // Asked for a time still ahead, it waits and says nothing of the kind.
+  const Result ahead = viewer("--png " + out_ + "-ahead.png --at " + std::to_string(client_->latest_state()->sim_time + 1));
+  ASSERT_EQ(ahead.code, 0) << ahead.output;
+  EXPECT_EQ(ahead.output.find("already"), std::string::npos) << ahead.output;
 }
 
 TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
@@ -338,7 +421,7 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
       std::this_thread::sleep_for(Millis(5));
     }
   });
-  for (const std::string mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
+  for (const std::string& mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
     const auto t0 = std::chrono::steady_clock::now();
     const Result r = shell(kViewer + where() + " --timeout 2 " + mode);
     const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
