@@ -1,5 +1,6 @@
 #include "app.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <utility>
@@ -82,11 +83,18 @@ std::string no_server(const Options& o) {
 
 Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,
                   int height) {
-  if (!o.view) return fit(info, state, width, height);
+  if (!o.view) return o.side ? fit(info, state, width, height, 40, 0, 0) : fit(info, state, width, height);
   Camera c = *o.view;
   c.width = width;
   c.height = height;
   return c;
+}
+
+std::string camera_text(const Camera& c) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "view centre %.9g,%.9g m, %.9g px/m, yaw %.9g deg, pitch %.9g deg", c.cx, c.cy,
+                c.scale, c.yaw * 180 / M_PI, c.pitch * 180 / M_PI);
+  return buf;
 }
 
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats) {

@@ -11,6 +11,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <string_view>
 #include <vector>
 
 namespace ladder::view {
@@ -27,9 +28,10 @@ struct Glyph {
   char ch;
   int priority;
 };
-constexpr Glyph kGlyphs[] = {{kBackground, ' ', 0}, {kDepth, ':', 1},   {kFaceEven, '#', 2}, {kFaceOdd, '#', 2},
-                             {kRibbon, '+', 3},     {kHinge, 'o', 4},   {kLocked, '@', 5},   {kBroken, 'x', 5},
-                             {kGrip, '*', 5}};
+constexpr Glyph kGlyphs[] = {{kBackground, ' ', 0}, {kDepth, '.', 1},    {kSideEven, ':', 1}, {kSideOdd, ':', 1},
+                             {kFaceEven, '#', 2},   {kFaceOdd, '#', 2},  {kRibbon, '+', 3},   {kHand, '%', 3},
+                             {kHandShade, '%', 3},
+                             {kHinge, 'o', 4},      {kLocked, '@', 5},   {kBroken, 'x', 5},   {kGrip, '*', 5}};
 
 const Glyph& nearest(std::uint32_t argb) {
   const int r = static_cast<int>((argb >> 16) & 0xff), g = static_cast<int>((argb >> 8) & 0xff),
@@ -64,6 +66,7 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   cairo_t* cr = cairo_create(surface);
   Hud hud;
   hud.show = false;
+  hud.scale_bar = false;
   draw(cr, cam, info, state, hud);
   cairo_destroy(cr);
   cairo_surface_flush(surface);
@@ -80,14 +83,14 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
       lines[y][x] = (a.priority >= b.priority ? a : b).ch;
     }
   cairo_surface_destroy(surface);
-  // Block numbers at the centres, where the whole number lands on that block's face.
+  // Block numbers at the centres, where the whole number lands on a block (its faces, sides or tapes).
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {
     const Point s = cam.to_screen({state.blocks[i].x, state.blocks[i].y});
     const std::string label = std::to_string(i);
     const int y = static_cast<int>(s.y / 2), x0 = static_cast<int>(s.x) - static_cast<int>(label.size() - 1) / 2;
     if (y < 0 || y >= rows || x0 < 0 || x0 + static_cast<int>(label.size()) > cols) continue;
     bool fits = true;
-    for (std::size_t k = 0; k < label.size(); ++k) fits = fits && lines[y][x0 + k] == '#';
+    for (std::size_t k = 0; k < label.size(); ++k) fits = fits && std::string_view("#:+").find(lines[y][x0 + k]) != std::string_view::npos;
     if (fits) lines[y].replace(static_cast<std::size_t>(x0), label.size(), label);
   }
   std::string out;

@@ -59,6 +59,7 @@ int run_png(const Options& o) {
   Hud hud;
   hud.title = info.replay ? o.sim_id + " (REPLAY)" : o.sim_id;
   if (feed.stats()) hud.real_time_factor = feed.stats()->real_time_factor;
+  hud.numbers = o.numbers;
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);
   cairo_t* cr = cairo_create(surface);
   draw(cr, cam, info, state, hud);
@@ -70,12 +71,9 @@ int run_png(const Options& o) {
     return kFailed;
   }
   char buf[320];
-  std::snprintf(buf, sizeof buf,
-                "ladder-view: wrote %s (%dx%d px): t = %.6f s, seq %llu, %zu blocks; view centre %.9g,%.9g m, "
-                "%.9g px/m\n",
-                o.png.c_str(), o.width, o.height, state.sim_time, static_cast<unsigned long long>(state.seq),
-                state.blocks.size(), cam.cx, cam.cy, cam.scale);
-  std::cout << buf;
+  std::snprintf(buf, sizeof buf, "ladder-view: wrote %s (%dx%d px): t = %.6f s, seq %llu, %zu blocks; ", o.png.c_str(),
+                o.width, o.height, state.sim_time, static_cast<unsigned long long>(state.seq), state.blocks.size());
+  std::cout << buf << camera_text(cam) << "\n";
   return kOk;
 }
 

@@ -21,9 +21,11 @@ constexpr double kPokeImpulse = 0.005;  // [N s] ladderctl's default poke
 constexpr double kDragSlop = 4;         // [px] a press that moves farther is a drag, not a click
 constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at most ~33 a second
 
+// The overlay's keys, in short lines: the overlay stands down the left side of the picture.
 const std::vector<std::string> kHelp = {
-    "click: poke  drag a block: grab and move it  drag elsewhere / right drag: pan  wheel: zoom",
-    "t tip  space pause/resume  s step (S: 100)  r reset  f follow the ripple  0 fit  arrows pan  +/- zoom",
+    "click a block: poke it",      "drag a block: grab and move it", "drag elsewhere, middle drag: pan",
+    "right drag: orbit  wheel: zoom", "t tip  space pause/resume",    "s step (S: 100)  r reset",
+    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "arrows pan  +/- zoom",
     "o overlay  q quit"};
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
@@ -87,7 +89,8 @@ class Screen {
 
 class Viewer {
  public:
-  Viewer(const Options& o, Screen& screen) : o_(o), screen_(screen), client_(o.domain, o.sim_id), feed_(client_) {
+  Viewer(const Options& o, Screen& screen)
+      : o_(o), screen_(screen), client_(o.domain, o.sim_id), feed_(client_), side_(o.side) {
     camera_.width = screen.width();
     camera_.height = screen.height();
   }
@@ -111,7 +114,7 @@ class Viewer {
   }
 
  private:
-  enum class Mode { None, Pan, Press, Grab };
+  enum class Mode { None, Pan, Orbit, Press, Grab };
 
   // A new state: fit the view to a new scene, and note where the ripple is.
   void on_state() {
@@ -123,9 +126,8 @@ class Viewer {
       fitted_ = true;
       scene_blocks_ = info.blocks;
       scene_name_ = info.scene_name;
-      std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; view centre %.9g,%.9g m, %.9g px/m\n",
-                  info.scene_name.c_str(), info.blocks, camera_.width, camera_.height, camera_.cx, camera_.cy,
-                  camera_.scale);
+      std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; %s\n", info.scene_name.c_str(),
+                  info.blocks, camera_.width, camera_.height, camera_text(camera_).c_str());
       std::fflush(stdout);
       flips_.clear();
     }
@@ -152,6 +154,13 @@ class Viewer {
     dirty_ = true;
   }
 
+  // Frames the ladder again, seen from the side or in 3-D (key v).
+  void refit(const client::State& s) {
+    const client::SceneInfo& info = *feed_.info();
+    camera_ = side_ ? fit(info, s, screen_.width(), screen_.height(), 40, 0, 0)
+                    : fit(info, s, screen_.width(), screen_.height());
+  }
+
   void step_follow() {
     if (!ripple_) return;
     const double dx = ripple_->x - camera_.cx, dy = ripple_->y - camera_.cy;
@@ -166,6 +175,7 @@ class Viewer {
     Hud hud;
     hud.title = feed_.info() && feed_.info()->replay ? o_.sim_id + " (REPLAY)" : o_.sim_id;
     hud.stats = true;
+    hud.numbers = numbers_;
     if (feed_.stats()) hud.real_time_factor = feed_.stats()->real_time_factor;
     const client::State* s = feed_.state();
     if (!s) {
@@ -270,10 +280,15 @@ class Viewer {
       case SDLK_s: send(cmd::step(shift ? 100 : 1), shift ? "step 100" : "step 1"); break;
       case SDLK_r: send(cmd::reset(), "reset"); break;
       case SDLK_f: follow_ = !follow_; break;
+      case SDLK_n: numbers_ = !numbers_; break;
+      case SDLK_v:
+        side_ = !side_;
+        if (s) refit(*s);
+        break;
       case SDLK_o: overlay_ = !overlay_; break;
       case SDLK_0:
       case SDLK_HOME:
-        if (s) camera_ = fit(*feed_.info(), *s, screen_.width(), screen_.height());
+        if (s) refit(*s);
         follow_ = false;
         break;
       case SDLK_PLUS:
@@ -292,28 +307,41 @@ class Viewer {
 
   void on_press(const SDL_MouseButtonEvent& b) {
     press_ = {double(b.x), double(b.y)};
-    mode_ = Mode::Pan;
+    mode_ = b.button == SDL_BUTTON_RIGHT ? Mode::Orbit : Mode::Pan;
     const client::State* s = feed_.state();
     if (b.button != SDL_BUTTON_LEFT || !s) return;
-    const Point w = camera_.to_world(press_);
-    block_ = block_at(*feed_.info(), *s, w);
+    // The block under the cursor in the picture as drawn: the ray through it, against every block's box.
+    const Pick p = pick(camera_, *feed_.info(), *s, press_);
+    block_ = p.block;
     if (block_ < 0) return;
     mode_ = Mode::Press;
-    grab_point_ = to_block_frame(s->blocks[block_], w);
-    press_world_ = w;
+    grab_point_ = to_block_frame(s->blocks[block_], p.world);
+    press_world_ = p.world;
+    // A drag moves the grabbed point as the plane z = 0 under the cursor moves.
+    const Point plane = camera_.to_world(press_);
+    drag_offset_ = {p.world.x - plane.x, p.world.y - plane.y};
+  }
+
+  Point drag_target(Point at) const {
+    const Point w = camera_.to_world(at);
+    return {w.x + drag_offset_.x, w.y + drag_offset_.y};
   }
 
   void on_motion(const SDL_MouseMotionEvent& m) {
     const Point at{double(m.x), double(m.y)};
     if (const client::State* s = feed_.state()) {
-      const int h = block_at(*feed_.info(), *s, camera_.to_world(at));
+      const int h = pick(camera_, *feed_.info(), *s, at).block;
       if (h != hover_) dirty_ = overlay_;
       hover_ = h;
     }
-    if (mode_ == Mode::Pan) {
-      camera_.cx -= m.xrel / camera_.scale;
-      camera_.cy += m.yrel / camera_.scale;
-      follow_ = false;
+    if (mode_ == Mode::Pan || mode_ == Mode::Orbit) {
+      const Point from{at.x - m.xrel, at.y - m.yrel};
+      if (mode_ == Mode::Pan)
+        camera_.pan(from, at);
+      else
+        camera_.orbit(0.01 * m.xrel, 0.01 * m.yrel);
+      follow_ = mode_ == Mode::Orbit && follow_;
+      side_ = side_ && mode_ == Mode::Pan;
       dirty_ = true;
     } else if (mode_ == Mode::Press && std::hypot(at.x - press_.x, at.y - press_.y) > kDragSlop) {
       // Hold the block by the point that was pressed, pulled toward the cursor.
@@ -323,9 +351,9 @@ class Viewer {
       c.d = grab_point_.y;
       send(c, "grab block " + std::to_string(block_));
       mode_ = Mode::Grab;
-      drag_to_ = camera_.to_world(at);
+      drag_to_ = drag_target(at);
     } else if (mode_ == Mode::Grab) {
-      drag_to_ = camera_.to_world(at);
+      drag_to_ = drag_target(at);
     }
   }
 
@@ -352,6 +380,7 @@ class Viewer {
   Feed feed_;
   Camera camera_;
   bool fitted_ = false, follow_ = false, overlay_ = false, dirty_ = true, quit_ = false, silent_ = false;
+  bool side_ = false, numbers_ = true;  // keys v and n
   std::uint32_t scene_blocks_ = 0;
   std::string scene_name_;
   std::vector<std::uint32_t> flips_;
@@ -363,7 +392,7 @@ class Viewer {
   // The mouse: what a left press started, on which block, where.
   Mode mode_ = Mode::None;
   int block_ = -1;
-  Point press_, press_world_, grab_point_;
+  Point press_, press_world_, grab_point_, drag_offset_;
   std::optional<Point> drag_to_;
 };
 

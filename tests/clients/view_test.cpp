@@ -52,7 +52,11 @@ bool eventually(const std::function<bool()>& done, Millis timeout) {
 
 // Colours: a block's face must be its own parity's face colour (Cairo paints a polygon's inside exactly).
 int distance(Rgb a, Rgb b) { return std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b); }
-bool is_face(Rgb c) { return distance(c, view::kFaceEven) < 12 || distance(c, view::kFaceOdd) < 12; }
+bool is_face(Rgb c) {
+  for (const Rgb wood : {view::kFaceEven, view::kFaceOdd, view::kSideEven, view::kSideOdd})
+    if (distance(c, wood) < 12) return true;
+  return false;
+}
 
 // An RGB picture: a PNG (Cairo reads it) or an X screen (XWD, as Xvfb -fbdir keeps it).
 struct Image {
@@ -122,31 +126,68 @@ Image read_xwd(const std::string& path) {
   return img;
 }
 
-// "view centre X,Y m, S px/m" in ladder-view's output -> its camera.
+// "view centre X,Y m, S px/m, yaw A deg, pitch B deg" in ladder-view's output -> its camera.
 std::optional<Camera> camera_in(const std::string& output, int width, int height) {
   std::smatch m;
-  if (!std::regex_search(output, m, std::regex(R"(view centre ([-0-9.e+]+),([-0-9.e+]+) m, ([0-9.e+]+) px/m)")))
+  if (!std::regex_search(output, m, std::regex(R"(view centre ([-0-9.e+]+),([-0-9.e+]+) m, ([0-9.e+]+) px/m, )"
+                                               R"(yaw ([-0-9.e+]+) deg, pitch ([-0-9.e+]+) deg)")))
     return std::nullopt;
   Camera c;
   c.cx = std::stod(m[1]);
   c.cy = std::stod(m[2]);
   c.scale = std::stod(m[3]);
+  c.yaw = std::stod(m[4]) * M_PI / 180;
+  c.pitch = std::stod(m[5]) * M_PI / 180;
   c.width = width;
   c.height = height;
   return c;
 }
 
-// Every block's centre, projected, shows that block's face colour; `offset` is the picture's place on the image.
-void expect_blocks_at_centres(const Image& img, const Camera& cam, const client::State& s, Point offset = {}) {
+// Which wide face of a block faces the camera: +1 its +x face, -1 its -x face (the model's geometry, draw.hpp).
+int facing_side(const Camera& cam, const client::Pose& p) {
+  const view::Vec3 n = cam.to_view({cam.cx + std::cos(p.theta), cam.cy + std::sin(p.theta), 0});
+  return n.z > 0 ? 1 : -1;
+}
+
+// A point on block i's wide face toward the camera, at `y` along its length and `z` across its depth (fractions:
+// 0 is the middle), projected.
+Point on_wide_face(const Camera& cam, const client::SceneInfo& info, const client::Pose& p, double y, double z) {
+  const double x = 0.5 * info.thickness * facing_side(cam, p);
+  const double c = std::cos(p.theta), s = std::sin(p.theta), ly = y * info.length;
+  return cam.project({p.x + c * x - s * ly, p.y + s * x + c * ly, z * view::depth_of(info)});
+}
+
+// Every block's wide face is where the state puts it: a point of it clear of its tapes (z = -0.16 of the depth lies
+// between the central tape and an outer one) and of the hand (block 0: low on the face) shows that block's face
+// colour. `offset` is the picture's place on the image.
+void expect_blocks_at_centres(const Image& img, const Camera& cam, const client::SceneInfo& info,
+                              const client::State& s, Point offset = {}) {
   ASSERT_GT(img.width, 0) << "no picture";
   for (std::size_t i = 0; i < s.blocks.size(); ++i) {
-    const Point p = cam.to_screen({s.blocks[i].x, s.blocks[i].y});
+    const Point p = on_wide_face(cam, info, s.blocks[i], i == 0 ? -0.35 : 0, -0.16);
     const Rgb c = img.at({p.x + offset.x, p.y + offset.y}), want = view::face_colour(static_cast<int>(i));
     EXPECT_LT(distance(c, want), 12) << "block " << i << " at pixel (" << p.x + offset.x << ", " << p.y + offset.y
                                      << "): rgb " << c.r << "," << c.g << "," << c.b << ", want " << want.r << ","
                                      << want.g << "," << want.b;
   }
 }
+
+// The tapes each block shows on its face toward the camera: 'o' two outer ones, 'c' one central one, '-' none,
+// read off the picture at the middle of the depth and at an outer tape's place.
+std::string tapes_seen(const Image& img, const Camera& cam, const client::SceneInfo& info, const client::State& s,
+                       Point offset = {}) {
+  std::string out;
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+    const double y = i == 0 ? -0.35 : 0;
+    const Point mid = on_wide_face(cam, info, s.blocks[i], y, 0), outer = on_wide_face(cam, info, s.blocks[i], y, 0.32);
+    const bool central = distance(img.at({mid.x + offset.x, mid.y + offset.y}), view::kRibbon) < 12;
+    const bool outers = distance(img.at({outer.x + offset.x, outer.y + offset.y}), view::kRibbon) < 12;
+    out += central ? (outers ? '?' : 'c') : (outers ? 'o' : '-');
+  }
+  return out;
+}
+
+bool is_hand(Rgb c) { return c.b > c.r + 40 && c.b > c.g + 20; }
 
 // ---------------------------------------------------------------------------------------------------------------
 // The drawing module alone.
@@ -171,21 +212,71 @@ client::State zigzag(int n) {
   return s;
 }
 
-TEST(Draw, FacesAtProjectedCentresHitTestsAndAscii) {
+Image render(const Camera& cam, const client::SceneInfo& info, const client::State& s, const std::string& name,
+             int* drawn = nullptr) {
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, cam.width, cam.height);
+  cairo_t* cr = cairo_create(surface);
+  const int n = view::draw(cr, cam, info, s, view::Hud{});
+  if (drawn) *drawn = n;
+  cairo_destroy(cr);
+  const std::string path = kBin + "/tests/" + name + ".png";
+  cairo_surface_write_to_png(surface, path.c_str());
+  cairo_surface_destroy(surface);
+  return read_png(path);
+}
+
+// The 3-D view of a known state: each block's wide face where the state puts it, the tapes each face carries (two
+// outer ones on the even blocks, a central one on the odd ones, as the hanging toy shows them), the hand on the
+// held top block; a click (pick) finds the block under it. Then block 2 turned over, as a flip-flop leaves it: its
+// other face, with the other tapes, is the one seen.
+TEST(Draw, BlocksRibbonsAndTheHandWhereTheStateHasThem) {
+  client::SceneInfo info = classic_info(6);
+  info.top = "held";
+  info.options = "sim.dt=0.001\nladder.depth=0.04\n";
+  EXPECT_EQ(view::depth_of(info), 0.04);
+  client::State s = zigzag(6);
+  const Camera cam = view::fit(info, s, 400, 600);
+  EXPECT_FALSE(cam.side());
+  int drawn = 0;
+  const Image img = render(cam, info, s, "Draw3d", &drawn);
+  EXPECT_EQ(drawn, 6);
+  expect_blocks_at_centres(img, cam, info, s);
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) EXPECT_EQ(facing_side(cam, s.blocks[i]), 1) << i;
+  EXPECT_EQ(tapes_seen(img, cam, info, s), "ocococ");
+  EXPECT_TRUE(is_hand(img.at(cam.project(view::hand_centre(info, s.blocks[0])))));
+  EXPECT_EQ(distance(img.at({399, 0}), view::kBackground), 0);
+  // The scale bar, bottom left: its line 18 px above the bottom, nothing just above it.
+  EXPECT_LT(distance(img.at({30, 600 - 18}), view::kText), 40);
+  EXPECT_EQ(distance(img.at({30, 600 - 30}), view::kBackground), 0);
+  // Picking: the block under each face point, and a point of it inside its rectangle; nothing on the background.
+  for (int i = 0; i < 6; ++i) {
+    const view::Pick p = view::pick(cam, info, s, on_wide_face(cam, info, s.blocks[i], 0.2, -0.16));
+    EXPECT_EQ(p.block, i);
+    EXPECT_EQ(view::block_at(info, s, p.world), i);
+  }
+  EXPECT_EQ(view::pick(cam, info, s, {5, 300}).block, -1);
+
+  // Block 2 turned over about its centre: its -x face (hinge 2's central tape) now faces the camera.
+  s.blocks[2].theta += M_PI;
+  const Image flipped = render(cam, info, s, "Draw3d-flipped");
+  EXPECT_EQ(facing_side(cam, s.blocks[2]), -1);
+  EXPECT_EQ(tapes_seen(flipped, cam, info, s), "occcoc");
+  // A broken hinge has no tapes: hinge 1's (the outer ones on block 0, the central one on block 1) are gone.
+  s.hinges[1].status = ladder_msg_BROKEN;
+  EXPECT_EQ(tapes_seen(render(cam, info, s, "Draw3d-broken"), cam, info, s), "--ccoc");
+}
+
+// The side view (the model's plane): each block's narrow side at its centre, the locked hinge's red dot on its
+// particle; and the text rendering, every block numbered.
+TEST(Draw, SideViewAndAscii) {
   const client::SceneInfo info = classic_info(6);
   const client::State s = zigzag(6);
-  const Camera cam = view::fit(info, s, 300, 500);
-  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, 300, 500);
-  cairo_t* cr = cairo_create(surface);
-  EXPECT_EQ(view::draw(cr, cam, info, s, view::Hud{}), 6);
-  cairo_destroy(cr);
-  const std::string path = kBin + "/tests/Draw.png";
-  ASSERT_EQ(cairo_surface_write_to_png(surface, path.c_str()), CAIRO_STATUS_SUCCESS);
-  cairo_surface_destroy(surface);
-  const Image img = read_png(path);
-  expect_blocks_at_centres(img, cam, s);
-  EXPECT_EQ(distance(img.at({299, 499}), view::kBackground), 0);
-  // The locked hinge 3 is marked: its red dot sits on the hinge particle.
+  const Camera cam = view::fit(info, s, 300, 500, 40, 0, 0);
+  EXPECT_TRUE(cam.side());
+  const Image img = render(cam, info, s, "DrawSide");
+  for (std::size_t i = 0; i < s.blocks.size(); ++i)
+    EXPECT_LT(distance(img.at(cam.to_screen({s.blocks[i].x, s.blocks[i].y})), view::side_colour(int(i))), 12) << i;
+  EXPECT_EQ(distance(img.at({299, 0}), view::kBackground), 0);
   const Point h = cam.to_screen(view::hinge_particle(info, 3, s.hinges[3].corner, s.blocks[3]));
   EXPECT_LT(distance(img.at(h), view::kLocked), 12);
   for (int i = 0; i < 6; ++i) EXPECT_EQ(view::block_at(info, s, {s.blocks[i].x, s.blocks[i].y}), i);
@@ -251,15 +342,22 @@ class View : public ::testing::Test {
 };
 
 // Before and after a tip (the server paused for each, so that the state drawn is the state the test holds): every
-// block is where the state puts it, and where a block was before and is no longer, the picture changed.
-TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
+// block is where the state puts it, the hand holds the top block, and the ripple has turned every block over, so the
+// face toward the camera is each block's other one, with the other tapes: outer and central swap all down the
+// ladder (the paper's Figure 3); the top block's new face has none (its hinge there is hinge 0, the hand's hold), nor
+// has the bottom block's (no hinge below it).
+TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockAndItsTapesWhereTheStateHasThem) {
   const client::State before = pause();
+  const client::SceneInfo info = *client_->scene_info();
+  ASSERT_EQ(info.top, "held");
   const Result a = viewer("--png " + out_ + "-before.png --size 500x700");
   ASSERT_EQ(a.code, 0) << a.output;
   const auto cam = camera_in(a.output, 500, 700);
   ASSERT_TRUE(cam) << a.output;
   const Image img0 = read_png(out_ + "-before.png");
-  expect_blocks_at_centres(img0, *cam, before);
+  expect_blocks_at_centres(img0, *cam, info, before);
+  EXPECT_EQ(tapes_seen(img0, *cam, info, before), "ocococ");
+  EXPECT_TRUE(is_hand(img0.at(cam->project(view::hand_centre(info, before.blocks[0])))));
 
   ASSERT_TRUE(client_->call(cmd::resume(), kAnswer).accepted);
   ASSERT_TRUE(client_->call(cmd::tip(), kAnswer).accepted);
@@ -267,34 +365,25 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
   const auto rippled = client_->wait_state(
       [](const client::State& s) { return s.hinges.size() == 6 && s.hinges[5].flips >= 1; }, Millis(30000));
   ASSERT_TRUE(rippled) << "no flip-flop at hinge 5";
-  ASSERT_TRUE(client_->wait_state([&](const client::State& s) { return s.sim_time > rippled->sim_time + 0.5; },
-                                  Millis(30000)));
+  // Every block has turned over (the bottom one last, and it swings on for a while).
+  const auto turned = [](const client::State& st) {
+    return std::all_of(st.blocks.begin(), st.blocks.end(), [](const client::Pose& p) { return std::cos(p.theta) < -0.7; });
+  };
+  ASSERT_TRUE(client_->wait_state(turned, Millis(30000))) << "the blocks did not all turn over";
   const client::State after = pause();
   char at[64];
   std::snprintf(at, sizeof at, "%.17g", after.sim_time);
-  char view[128];
-  std::snprintf(view, sizeof view, "%.17g,%.17g,%.17g", cam->cx, cam->cy, cam->scale);
+  char view[160];
+  std::snprintf(view, sizeof view, "%.17g,%.17g,%.17g,%.17g,%.17g", cam->cx, cam->cy, cam->scale,
+                cam->yaw * 180 / M_PI, cam->pitch * 180 / M_PI);
   const Result b = viewer("--png " + out_ + "-after.png --size 500x700 --at " + at + " --view " + view);
   ASSERT_EQ(b.code, 0) << b.output;
   const Image img1 = read_png(out_ + "-after.png");
-  expect_blocks_at_centres(img1, *cam, after);
-
-  // Where a block's centre was and no block is now (2 px clear of every block), the face is gone.
-  const client::SceneInfo info = *client_->scene_info();
-  int vacated = 0;
-  for (const auto& p : before.blocks) {
-    bool clear = true;
-    for (double dx : {-2.0, 0.0, 2.0})
-      for (double dy : {-2.0, 0.0, 2.0}) clear = clear && view::block_at(info, after, {p.x + dx / cam->scale,
-                                                                                           p.y + dy / cam->scale}) < 0;
-    if (!clear) continue;
-    ++vacated;
-    const Point q = cam->to_screen({p.x, p.y});
-    EXPECT_TRUE(is_face(img0.at(q)));
-    EXPECT_FALSE(is_face(img1.at(q))) << "the picture after the tip still shows a face at (" << q.x << ", " << q.y
-                                      << ")";
-  }
-  EXPECT_GE(vacated, 3) << "the blocks hardly moved";
+  expect_blocks_at_centres(img1, *cam, info, after);
+  for (std::size_t i = 0; i < 6; ++i)
+    EXPECT_EQ(facing_side(*cam, after.blocks[i]), -facing_side(*cam, before.blocks[i])) << "block " << i;
+  EXPECT_EQ(tapes_seen(img1, *cam, info, after), "-ococ-");
+  EXPECT_TRUE(is_hand(img1.at(cam->project(view::hand_centre(info, after.blocks[0])))));
 }
 
 TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
@@ -505,11 +594,12 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
   const Point origin{std::stod(m[1]), std::stod(m[2])};
 
-  // The screenshot shows each block at its projected centre (once the window has painted).
+  // The screenshot shows each block's wide face where the state has it (once the window has painted), and its tapes.
+  const client::SceneInfo info = *client_->scene_info();
   const auto shows_ladder = [&] {
     const Image img = x.screen();
     for (std::size_t i = 0; i < s.blocks.size(); ++i) {
-      const Point p = cam->to_screen({s.blocks[i].x, s.blocks[i].y});
+      const Point p = on_wide_face(*cam, info, s.blocks[i], i == 0 ? -0.35 : 0, -0.16);
       if (distance(img.at({p.x + origin.x, p.y + origin.y}), view::face_colour(int(i))) >= 12) return false;
     }
     return true;
@@ -521,10 +611,13 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
            << "-screen.png); the viewer " << (exited ? "has exited, status " + std::to_string(*exited) : "runs")
            << "; its log:\n" << viewer.log() << "\nXvfb's log:\n" << x.log();
   }
-  expect_blocks_at_centres(x.screen(), *cam, s, origin);
+  expect_blocks_at_centres(x.screen(), *cam, info, s, origin);
+  EXPECT_EQ(tapes_seen(x.screen(), *cam, info, s, origin), "ocococ");
+  EXPECT_FALSE(cam->side());
 
-  // A click on block 3 pokes it: the viewer reports the server's acceptance, the server counts it and logs it.
-  const Point p = cam->to_screen({s.blocks[3].x, s.blocks[3].y});
+  // A click on block 3's face in the 3-D view pokes it: the viewer reports the server's acceptance, the server
+  // counts it and logs it.
+  const Point p = on_wide_face(*cam, info, s.blocks[3], 0.1, -0.16);
   const Result click = shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
                              std::to_string(int(p.y + origin.y)) + " click 1");
   ASSERT_EQ(click.code, 0) << click.output;
@@ -645,7 +738,7 @@ TEST_F(View, RemoteViewerInAnotherNetworkNamespace) {
   ASSERT_EQ(a.code, 0) << a.output << "\nremote server:\n" << remote.log();
   const auto cam = camera_in(a.output, 500, 700);
   ASSERT_TRUE(cam) << a.output;
-  expect_blocks_at_centres(read_png(out_ + "-remote.png"), *cam, rest);
+  expect_blocks_at_centres(read_png(out_ + "-remote.png"), *cam, *client_->scene_info(), rest);
 
   const Result tip = shell(where_b + kBin + "/clients/ladderctl tip" + where() + " --timeout 30");
   ASSERT_EQ(tip.code, 0) << tip.output;
