@@ -2,6 +2,7 @@
 // picture changes. The DDS client is polled, never waited on, so the window stays responsive while the server is
 // away; commands are sent at once and their answers picked up in later frames.
 #include "app.hpp"
+#include "plot.hpp"
 
 #include <SDL2/SDL.h>
 
@@ -25,7 +26,7 @@ constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at
 const std::vector<std::string> kHelp = {
     "click a block: poke it",      "drag a block: grab and move it", "drag elsewhere, middle drag: pan",
     "right drag: orbit  wheel: zoom", "t tip  space pause/resume",    "s step (S: 100)  r reset",
-    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "arrows pan  +/- zoom",
+    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "p plots  arrows pan  +/- zoom",
     "o overlay  q quit"};
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
@@ -141,6 +142,7 @@ class Viewer {
     }
     flips_.resize(s.hinges.size());
     for (std::size_t k = 0; k < s.hinges.size(); ++k) flips_[k] = s.hinges[k].flips;
+    history_.add(s.generation, s.sim_time, s.energy, flips_);
   }
 
   // Says on standard output when the server goes quiet and when it is back (the picture says it too).
@@ -201,6 +203,10 @@ class Viewer {
       drawn_ = draw(screen_.cairo(), camera_, *feed_.info(), *s, hud);
     else
       draw_empty(screen_.cairo(), camera_, hud);
+    // The plots in the right half, lower part: the ladder hangs in the middle, the overlay is on the left.
+    if (plots_)
+      draw_plots(screen_.cairo(), history_, 0.58 * screen_.width(), 0.45 * screen_.height(),
+                 0.4 * screen_.width(), 0.5 * screen_.height());
     screen_.present();
     draw_ms_ = 1e3 * seconds(Clock::now() - t0);
     drawn_at_ = Clock::now();
@@ -281,6 +287,7 @@ class Viewer {
       case SDLK_r: send(cmd::reset(), "reset"); break;
       case SDLK_f: follow_ = !follow_; break;
       case SDLK_n: numbers_ = !numbers_; break;
+      case SDLK_p: plots_ = !plots_; break;
       case SDLK_v:
         side_ = !side_;
         if (s) refit(*s);
@@ -380,7 +387,8 @@ class Viewer {
   Feed feed_;
   Camera camera_;
   bool fitted_ = false, follow_ = false, overlay_ = false, dirty_ = true, quit_ = false, silent_ = false;
-  bool side_ = false, numbers_ = true;  // keys v and n
+  bool side_ = false, numbers_ = true, plots_ = false;  // keys v, n and p
+  History history_;  // what the plots show
   std::uint32_t scene_blocks_ = 0;
   std::string scene_name_;
   std::vector<std::uint32_t> flips_;

@@ -2,6 +2,7 @@
 #include "transport/version.hpp"
 
 #include "replay.hpp"
+#include "session_plot.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -314,6 +315,8 @@ struct Values {
   double duration = 0, stiffness = 0;
   WatchOptions watch;
   ReplayOptions replay;
+  PlotOptions plot;
+  std::string plot_size;
 };
 
 void add_connection(CLI::App& app, Connection& c) {
@@ -451,6 +454,27 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
     action = [&v](Client& cl, const Connection& k) { return watch(cl, k, v.watch); };
   });
 
+  auto* p = app.add_subcommand("plot", "the ripple's front (hinge of each flip-flop against time) and the energy as "
+                                       "a PNG, from the running server or a recorded session");
+  p->add_option("PNG", v.plot.png, "the picture to write")->required();
+  p->add_option("--log", v.plot.log, "a recorded session (ladderd --record): all of its states, no server needed")
+      ->check(CLI::ExistingFile);
+  p->add_option("--for", v.plot.seconds, "the running server: watch its states this long [s] (default 10)")
+      ->check(CLI::PositiveNumber);
+  p->add_option("--size", v.plot_size, "WxH pixels (default 900x600)");
+  p->callback([&] {
+    if (!v.plot_size.empty()) {
+      char x = 0, rest = 0;
+      if (std::sscanf(v.plot_size.c_str(), "%d%c%d%c", &v.plot.width, &x, &v.plot.height, &rest) != 3 || x != 'x' ||
+          v.plot.width < 200 || v.plot.height < 150 || v.plot.width > 8192 || v.plot.height > 8192)
+        throw CLI::ValidationError("--size", "'" + v.plot_size + "' is not a size like 900x600 (200x150 to 8192x8192)");
+    }
+    if (!v.plot.log.empty())
+      standalone = [&v](const Connection&) { return plot_log(v.plot); };
+    else
+      action = [&v](Client& cl, const Connection&) { return plot_live(cl, v.plot); };
+  });
+
   auto* r = app.add_subcommand("replay", "publish a recorded session (ladderd --record) as if live, for viewers");
   r->add_option("FILE", v.replay.log, "the session log")->required()->check(CLI::ExistingFile);
   r->add_option("--speed", v.replay.speed, "pace: 2 = twice as fast, 0 = as fast as possible (default 1)")
@@ -514,7 +538,7 @@ std::string unknown_command(const std::string& word) {
 const std::vector<std::string>& command_names() {
   static const std::vector<std::string> names{"tip",  "poke",  "push", "grab",   "drag", "release",
                                               "break", "join", "pause", "resume", "step", "reset",
-                                              "set",  "load",  "status", "watch", "replay", "help", "quit"};
+                                              "set",  "load",  "status", "watch", "plot", "replay", "help", "quit"};
   return names;
 }
 

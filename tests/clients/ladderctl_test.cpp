@@ -1,6 +1,7 @@
 // ladderctl against a real ladderd over Cyclone DDS on loopback: exit codes, printed answers, the timeout
 // message, and the interactive prompt driven through a pseudo-terminal.
 #include "process.hpp"
+#include "plot.hpp"
 #include "pty.hpp"
 
 #include <gtest/gtest.h>
@@ -115,7 +116,7 @@ TEST_F(Ladderctl, AMistypedCommandSuggestsTheNearestAndListsThemAll) {
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("ladderctl: unknown command 'tpi'; did you mean 'tip'?\n"
                           "commands: tip poke push grab drag release break join pause resume step reset set load "
-                          "status watch replay help quit\n"),
+                          "status watch plot replay help quit\n"),
             std::string::npos)
       << r.output;
   EXPECT_NE(ctl("stat").output.find("did you mean 'status'?"), std::string::npos);  // a prefix
@@ -135,6 +136,46 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   EXPECT_NE(r.output.find("flip_flop       hinge 5"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  lock "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
+}
+
+// ladderctl plot: a tipped ladder's ripple (a flip-flop at each hinge, 1 to 5) and its energy, from the running
+// server and then from the session it recorded; the picture has a dot per flip-flop.
+TEST_F(Ladderctl, PlotWritesTheRippleFromTheServerAndFromItsRecording) {
+  server_.reset();  // this test's server records
+  const std::string log = std::string(LADDER_BINARY_DIR) + "/tests/ctl-plot-" + std::to_string(getpid()) + ".lcmlog";
+  std::remove(log.c_str());
+  server_.emplace(std::vector<std::string>{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
+                                           std::to_string(domain_), "--sim-id", sim_id_, "--record", log},
+                  std::string(LADDER_BINARY_DIR) + "/tests/ctl-plot.log");
+  ASSERT_EQ(ctl("tip").code, 0);
+  const std::string live = std::string(LADDER_BINARY_DIR) + "/tests/ctl-plot-live.png";
+  const Result a = ctl("plot " + live + " --for 4");
+  ASSERT_EQ(a.code, 0) << a.output;
+  EXPECT_NE(a.output.find("from 4 s of the running server: 5 flip-flops at hinges 1 to 5 over t = "), std::string::npos)
+      << a.output;
+  server_->signal(SIGTERM);
+  ASSERT_TRUE(server_->wait_exit(std::chrono::seconds(20)).has_value());
+  const std::string recorded = std::string(LADDER_BINARY_DIR) + "/tests/ctl-plot-log.png";
+  const Result b = run("plot " + recorded + " --log " + log + " --size 600x400");
+  ASSERT_EQ(b.code, 0) << b.output;
+  EXPECT_NE(b.output.find("(600x400 px) from " + log + ": 5 flip-flops at hinges 1 to 5 over t = 0.000 to "),
+            std::string::npos)
+      << b.output;
+  for (const std::string& png : {live, recorded}) {
+    cairo_surface_t* img = cairo_image_surface_create_from_png(png.c_str());
+    ASSERT_EQ(cairo_surface_status(img), CAIRO_STATUS_SUCCESS) << png;
+    const unsigned char* d = cairo_image_surface_get_data(img);
+    int dots = 0;
+    for (int y = 0; y < cairo_image_surface_get_height(img); ++y)
+      for (int x = 0; x < cairo_image_surface_get_width(img); ++x) {
+        const auto v = *reinterpret_cast<const std::uint32_t*>(d + y * cairo_image_surface_get_stride(img) + 4 * x);
+        dots += ((v >> 16) & 0xff) == view::kFlipDot.r && ((v >> 8) & 0xff) == view::kFlipDot.g &&
+                (v & 0xff) == view::kFlipDot.b;
+      }
+    cairo_surface_destroy(img);
+    EXPECT_GE(dots, 5 * 12) << png << ": five dots of radius 3 px";  // each about 28 px, allow for overlap
+  }
+  EXPECT_EQ(run("plot " + recorded + " --log /nonexistent.lcmlog").code, 2);
 }
 
 // The prompt through a pseudo-terminal: "ti" + Tab completes to "tip", Enter sends it, the answer is printed; an

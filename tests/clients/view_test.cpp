@@ -6,6 +6,7 @@
 #include "client.hpp"
 #include "draw.hpp"
 #include "netns.hpp"
+#include "plot.hpp"
 #include "process.hpp"
 #include "pty.hpp"
 #include "transport/dds.hpp"
@@ -302,6 +303,34 @@ TEST(Draw, OnlyWhatIsOnScreenOfAHundredThousandBlocks) {
   EXPECT_LT(far, 60);
   cairo_destroy(cr);
   cairo_surface_destroy(surface);
+}
+
+// The plots' history: a flip-flop where a hinge's count goes up, at that state's time; a reset starts again. The
+// picture has each flip-flop's dot and the energy's line where the axes put them.
+TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
+  view::History h;
+  h.add(1, 0.0, -1.0, {0, 0, 0});
+  h.add(1, 1.0, -0.5, {0, 1, 0});
+  h.add(1, 2.0, -0.8, {0, 1, 2});  // hinge 2 twice in one state: two flip-flops
+  ASSERT_EQ(h.flips().size(), 3u);
+  EXPECT_EQ(h.flips()[0].x, 1.0);
+  EXPECT_EQ(h.flips()[0].y, 1.0);
+  EXPECT_EQ(h.flips()[2].x, 2.0);
+  EXPECT_EQ(h.flips()[2].y, 2.0);
+  EXPECT_EQ(h.energy().size(), 3u);
+  EXPECT_EQ(h.hinges(), 2);
+  const std::string path = kBin + "/tests/Plot.png";
+  ASSERT_EQ(view::write_plots_png(h, path, 600, 400), "");
+  const Image img = read_png(path);
+  const auto axes = view::plot_axes(h, 0, 0, 600, 400);
+  EXPECT_EQ(distance(img.at(axes[0].at(1.0, 1.0)), view::kFlipDot), 0);
+  EXPECT_EQ(distance(img.at(axes[0].at(2.0, 2.0)), view::kFlipDot), 0);
+  EXPECT_NE(distance(img.at(axes[0].at(1.0, 2.0)), view::kFlipDot), 0);  // no flip-flop of hinge 2 at t = 1
+  EXPECT_LT(distance(img.at(axes[1].at(1.0, -0.5)), view::kEnergyLine), 60);
+  h.add(1, 0.5, -1.0, {0, 0, 0});  // back in time: a reset
+  EXPECT_TRUE(h.flips().empty());
+  EXPECT_EQ(h.energy().size(), 1u);
+  EXPECT_EQ(view::write_plots_png(h, "/nonexistent/dir/p.png", 600, 400).empty(), false);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
