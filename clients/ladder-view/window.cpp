@@ -2,6 +2,7 @@
 // picture changes. The DDS client is polled, never waited on, so the window stays responsive while the server is
 // away; commands are sent at once and their answers picked up in later frames.
 #include "app.hpp"
+#include "directory.hpp"
 #include "plot.hpp"
 
 #include <SDL2/SDL.h>
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <memory>
 
 namespace ladder::view {
 
@@ -26,8 +28,8 @@ constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at
 const std::vector<std::string> kHelp = {
     "click a block: poke it",      "drag a block: grab and move it", "drag elsewhere, middle drag: pan",
     "right drag: orbit  wheel: zoom", "t tip  space pause/resume",    "s step (S: 100)  r reset",
-    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "p plots  arrows pan  +/- zoom",
-    "o overlay  q quit"};
+    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "p plots  Tab next ladder",
+    "arrows pan  +/- zoom",        "o overlay  q quit"};
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -69,6 +71,7 @@ class Screen {
     SDL_RenderPresent(renderer_);
   }
   int width() const { return width_; }
+  void title(const std::string& t) { SDL_SetWindowTitle(window_, t.c_str()); }
   int height() const { return height_; }
 
  private:
@@ -91,14 +94,14 @@ class Screen {
 class Viewer {
  public:
   Viewer(const Options& o, Screen& screen)
-      : o_(o), screen_(screen), client_(o.domain, o.sim_id), feed_(client_), side_(o.side) {
+      : o_(o), screen_(screen), sim_id_(o.sim_id), link_(std::make_unique<Link>(o.domain, o.sim_id)), side_(o.side) {
     camera_.width = screen.width();
     camera_.height = screen.height();
   }
 
   void run() {
     while (!quit_) {
-      if (feed_.update(client::Millis(4))) {
+      if (link_->feed.update(client::Millis(4))) {
         on_state();
         dirty_ = true;
       }
@@ -119,9 +122,9 @@ class Viewer {
 
   // A new state: fit the view to a new scene, and note where the ripple is.
   void on_state() {
-    if (!feed_.state()) return;  // Feed::update() says so only with a state and its SceneInfo; kept safe here too
-    const client::State& s = *feed_.state();
-    const client::SceneInfo& info = *feed_.info();
+    if (!link_->feed.state()) return;  // Feed::update() says so only with a state and its SceneInfo; kept safe here too
+    const client::State& s = *link_->feed.state();
+    const client::SceneInfo& info = *link_->feed.info();
     if (!fitted_ || info.blocks != scene_blocks_ || info.scene_name != scene_name_) {
       camera_ = camera_for(o_, info, s, screen_.width(), screen_.height());
       fitted_ = true;
@@ -147,18 +150,46 @@ class Viewer {
 
   // Says on standard output when the server goes quiet and when it is back (the picture says it too).
   void note_silence() {
-    const bool quiet = feed_.quiet() > 3;
+    const bool quiet = link_->feed.quiet() > 3;
     if (quiet == silent_) return;
     silent_ = quiet;
-    std::printf("ladder-view: ladderd '%s' %s\n", o_.sim_id.c_str(),
+    std::printf("ladder-view: ladderd '%s' %s\n", sim_id_.c_str(),
                 quiet ? "is not answering; waiting for it" : "answers again");
     std::fflush(stdout);
     dirty_ = true;
   }
 
+  // The next ladder on the domain (by sim id, round), found by DDS discovery (1.5 s, the window waits): shown from
+  // now on, framed anew.
+  void switch_ladder() {
+    const client::Directory d = client::discover(o_.domain, 1.5);
+    std::string next;
+    for (const client::LadderEntry& l : d.ladders)
+      if (l.sim_id > sim_id_) {
+        next = l.sim_id;
+        break;
+      }
+    if (next.empty() && !d.ladders.empty()) next = d.ladders.front().sim_id;
+    if (next.empty() || next == sim_id_) {
+      std::printf("ladder-view: no other ladder on DDS domain %d than '%s'\n", o_.domain, sim_id_.c_str());
+      std::fflush(stdout);
+      return;
+    }
+    if (mode_ == Mode::Grab) send(cmd::release(block_), "release block " + std::to_string(block_));
+    mode_ = Mode::None;
+    sim_id_ = next;
+    link_ = std::make_unique<Link>(o_.domain, sim_id_);
+    fitted_ = false;
+    history_ = History{};
+    screen_.title("ladder-view: " + sim_id_);
+    std::printf("ladder-view: switched to sim id '%s' (%zu ladders on DDS domain %d)\n", sim_id_.c_str(),
+                d.ladders.size(), o_.domain);
+    std::fflush(stdout);
+  }
+
   // Frames the ladder again, seen from the side or in 3-D (key v).
   void refit(const client::State& s) {
-    const client::SceneInfo& info = *feed_.info();
+    const client::SceneInfo& info = *link_->feed.info();
     camera_ = side_ ? fit(info, s, screen_.width(), screen_.height(), 40, 0, 0)
                     : fit(info, s, screen_.width(), screen_.height());
   }
@@ -175,32 +206,32 @@ class Viewer {
   void paint() {
     const auto t0 = Clock::now();
     Hud hud;
-    hud.title = feed_.info() && feed_.info()->replay ? o_.sim_id + " (REPLAY)" : o_.sim_id;
+    hud.title = link_->feed.info() && link_->feed.info()->replay ? sim_id_ + " (REPLAY)" : sim_id_;
     hud.stats = true;
     hud.numbers = numbers_;
-    if (feed_.stats()) hud.real_time_factor = feed_.stats()->real_time_factor;
-    const client::State* s = feed_.state();
+    if (link_->feed.stats()) hud.real_time_factor = link_->feed.stats()->real_time_factor;
+    const client::State* s = link_->feed.state();
     if (!s) {
-      hud.banner = "waiting for ladderd '" + o_.sim_id + "' on DDS domain " + std::to_string(o_.domain) + " ...";
-    } else if (feed_.quiet() > 3) {
+      hud.banner = "waiting for ladderd '" + sim_id_ + "' on DDS domain " + std::to_string(o_.domain) + " ...";
+    } else if (link_->feed.quiet() > 3) {
       char buf[128];
-      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", feed_.quiet());
+      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", link_->feed.quiet());
       hud.banner = buf;
     }
     if (overlay_) {
-      if (s) hud.lines = stats_lines(*feed_.info(), feed_.stats());
+      if (s) hud.lines = stats_lines(*link_->feed.info(), link_->feed.stats());
       char buf[128];
       std::snprintf(buf, sizeof buf, "draw %.1f ms, %d blocks on screen%s", draw_ms_, drawn_,
                     follow_ ? ", following the ripple" : "");
       hud.lines.emplace_back(buf);
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      if (!outbox_.last().empty()) hud.lines.push_back(outbox_.last());
+      if (!link_->outbox.last().empty()) hud.lines.push_back(link_->outbox.last());
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
-      hud.lines.push_back(outbox_.last().empty() ? "o: stats and keys" : outbox_.last());
+      hud.lines.push_back(link_->outbox.last().empty() ? "o: stats and keys" : link_->outbox.last());
     }
     if (s)
-      drawn_ = draw(screen_.cairo(), camera_, *feed_.info(), *s, hud);
+      drawn_ = draw(screen_.cairo(), camera_, *link_->feed.info(), *s, hud);
     else
       draw_empty(screen_.cairo(), camera_, hud);
     // The plots in the right half, lower part: the ladder hangs in the middle, the overlay is on the left.
@@ -214,10 +245,10 @@ class Viewer {
   }
 
   // --- commands ---
-  void send(const ladder_msg_Command& c, const std::string& what) { outbox_.send(c, what); }
+  void send(const ladder_msg_Command& c, const std::string& what) { link_->outbox.send(c, what); }
 
   void take_answers() {
-    for (const std::string& a : outbox_.take()) {
+    for (const std::string& a : link_->outbox.take()) {
       std::printf("ladder-view: %s\n", a.c_str());
       std::fflush(stdout);
       dirty_ = true;
@@ -272,7 +303,7 @@ class Viewer {
   void on_key(const SDL_Keysym& k) {
     const bool shift = (k.mod & KMOD_SHIFT) != 0;
     const double pan = 0.1 * std::min(camera_.width, camera_.height) / camera_.scale;
-    const client::State* s = feed_.state();
+    const client::State* s = link_->feed.state();
     switch (k.sym) {
       case SDLK_q:
       case SDLK_ESCAPE: quit_ = true; break;
@@ -288,6 +319,7 @@ class Viewer {
       case SDLK_f: follow_ = !follow_; break;
       case SDLK_n: numbers_ = !numbers_; break;
       case SDLK_p: plots_ = !plots_; break;
+      case SDLK_TAB: switch_ladder(); break;
       case SDLK_v:
         side_ = !side_;
         if (s) refit(*s);
@@ -315,10 +347,10 @@ class Viewer {
   void on_press(const SDL_MouseButtonEvent& b) {
     press_ = {double(b.x), double(b.y)};
     mode_ = b.button == SDL_BUTTON_RIGHT ? Mode::Orbit : Mode::Pan;
-    const client::State* s = feed_.state();
+    const client::State* s = link_->feed.state();
     if (b.button != SDL_BUTTON_LEFT || !s) return;
     // The block under the cursor in the picture as drawn: the ray through it, against every block's box.
-    const Pick p = pick(camera_, *feed_.info(), *s, press_);
+    const Pick p = pick(camera_, *link_->feed.info(), *s, press_);
     block_ = p.block;
     if (block_ < 0) return;
     mode_ = Mode::Press;
@@ -336,8 +368,8 @@ class Viewer {
 
   void on_motion(const SDL_MouseMotionEvent& m) {
     const Point at{double(m.x), double(m.y)};
-    if (const client::State* s = feed_.state()) {
-      const int h = pick(camera_, *feed_.info(), *s, at).block;
+    if (const client::State* s = link_->feed.state()) {
+      const int h = pick(camera_, *link_->feed.info(), *s, at).block;
       if (h != hover_) dirty_ = overlay_;
       hover_ = h;
     }
@@ -367,7 +399,7 @@ class Viewer {
   void on_release(const SDL_MouseButtonEvent&) {
     if (mode_ == Mode::Press) {
       // A click pokes the block at that point, away from the side it was clicked on.
-      const client::State* s = feed_.state();
+      const client::State* s = link_->feed.state();
       // (the ladder may have been replaced by a smaller one since the press: then the block is gone)
       const bool known = s && static_cast<std::size_t>(block_) < s->blocks.size();
       const double dir = known && press_world_.x > s->blocks[static_cast<std::size_t>(block_)].x ? -1 : 1;
@@ -383,8 +415,15 @@ class Viewer {
 
   const Options& o_;
   Screen& screen_;
-  client::Client client_;
-  Feed feed_;
+  // The connection to the ladder shown; replaced when the user switches to another ladder (key Tab).
+  struct Link {
+    client::Client client;
+    Feed feed;
+    Outbox outbox;
+    Link(int domain, const std::string& sim_id) : client(domain, sim_id), feed(client), outbox(client) {}
+  };
+  std::string sim_id_;
+  std::unique_ptr<Link> link_;
   Camera camera_;
   bool fitted_ = false, follow_ = false, overlay_ = false, dirty_ = true, quit_ = false, silent_ = false;
   bool side_ = false, numbers_ = true, plots_ = false;  // keys v, n and p
@@ -393,7 +432,6 @@ class Viewer {
   std::string scene_name_;
   std::vector<std::uint32_t> flips_;
   std::optional<Point> ripple_;
-  Outbox outbox_{client_};
   Clock::time_point drawn_at_{}, dragged_at_{};
   double draw_ms_ = 0;
   int drawn_ = 0, hover_ = -1;

@@ -1,6 +1,7 @@
 #include "commands.hpp"
 #include "transport/version.hpp"
 
+#include "list.hpp"
 #include "replay.hpp"
 #include "session_plot.hpp"
 
@@ -454,6 +455,9 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
     action = [&v](Client& cl, const Connection& k) { return watch(cl, k, v.watch); };
   });
 
+  app.add_subcommand("list", "every ladderd on the domain: sim id, host, scene, blocks, real-time factor")
+      ->callback([&] { standalone = [](const Connection& c) { return list(c.domain, std::max(c.timeout, 1.5)); }; });
+
   auto* p = app.add_subcommand("plot", "the ripple's front (hinge of each flip-flop against time) and the energy as "
                                        "a PNG, from the running server or a recorded session");
   p->add_option("PNG", v.plot.png, "the picture to write")->required();
@@ -538,7 +542,8 @@ std::string unknown_command(const std::string& word) {
 const std::vector<std::string>& command_names() {
   static const std::vector<std::string> names{"tip",  "poke",  "push", "grab",   "drag", "release",
                                               "break", "join", "pause", "resume", "step", "reset",
-                                              "set",  "load",  "status", "watch", "plot", "replay", "help", "quit"};
+                                              "set",  "load",  "status", "watch", "list", "plot", "replay", "help",
+                                              "quit"};
   return names;
 }
 

@@ -678,6 +678,69 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
 }
 
+// Two ladders on the domain: Tab in the window switches to the other one (found by DDS discovery), which is then
+// framed and shown, and a click pokes that ladder's block.
+TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
+  Process second({kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_ + "-2",
+                  "--set", "ladder.blocks=3", "--log-level", "debug"},
+                 log_path_ + ".second");
+  Client other(domain_, sim_id_ + "-2", "test");
+  ASSERT_TRUE(other.wait_for_server(kStart)) << second.log();
+  const client::Ack paused = other.call(cmd::pause(), kAnswer);
+  ASSERT_TRUE(paused.accepted);
+  const auto s2 = other.wait_state([&](const client::State& st) { return st.commands_applied >= paused.command_seq; },
+                                   kAnswer);
+  ASSERT_TRUE(s2 && s2->paused);
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process viewer({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_, "--size", "640x600"},
+                 out_ + "-viewer.log");
+  ASSERT_TRUE(eventually([&] { return viewer.log().find("(6 blocks)") != std::string::npos; }, kStart))
+      << viewer.log();
+  const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
+  Result geometry;
+  ASSERT_TRUE(eventually(
+      [&] {
+        geometry = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowgeometry --shell");
+        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
+      },
+      kStart))
+      << geometry.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
+  const Point origin{std::stod(m[1]), std::stod(m[2])};
+  // Keys go to the window under the pointer (no window manager).
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(origin.x) + 5) + " " + std::to_string(int(origin.y) + 5) +
+                  " key Tab").code,
+            0);
+  ASSERT_TRUE(eventually([&] { return viewer.log().find("switched to sim id '" + sim_id_ + "-2' (2 ladders") !=
+                                      std::string::npos; },
+                         kStart))
+      << viewer.log();
+  const std::size_t at = viewer.log().find("switched to");
+  std::optional<Camera> cam;
+  ASSERT_TRUE(eventually([&] { return (cam = camera_in(viewer.log().substr(at), 640, 600)).has_value(); }, kStart))
+      << viewer.log();
+  EXPECT_NE(viewer.log().find("(3 blocks)", at), std::string::npos) << viewer.log();
+  const client::SceneInfo info = *other.scene_info();
+  const Point p = on_wide_face(*cam, info, s2->blocks[2], 0.1, -0.16);
+  // The picture shows the other ladder: its block 2's face where its state has it; a click there pokes it.
+  ASSERT_TRUE(eventually([&] { return distance(x.screen().at({p.x + origin.x, p.y + origin.y}), view::face_colour(2)) < 12; },
+                         kStart))
+      << viewer.log();
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
+                  std::to_string(int(p.y + origin.y)) + " click 1").code,
+            0);
+  EXPECT_TRUE(eventually([&] { return viewer.log().find("poke block 2: accepted") != std::string::npos; }, kStart))
+      << viewer.log();
+  EXPECT_TRUE(eventually([&] { return second.log().find("poke 1 from ") != std::string::npos; }, kAnswer))
+      << second.log();
+  EXPECT_EQ(server_->log().find("poke 1 from "), std::string::npos) << "the first ladder was poked";
+  viewer.signal(SIGTERM);
+  EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
 // A State that comes before its SceneInfo (the two topics arrive independently: a late joiner or a reset can see the
 // State first) is not drawn yet and does not stop the window: once the SceneInfo comes, the ladder is shown. The
 // publisher here is the test's own, under a sim id of its own, sending the real server's State and SceneInfo. The
