@@ -90,7 +90,8 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
     const int y = static_cast<int>(s.y / 2), x0 = static_cast<int>(s.x) - static_cast<int>(label.size() - 1) / 2;
     if (y < 0 || y >= rows || x0 < 0 || x0 + static_cast<int>(label.size()) > cols) continue;
     bool fits = true;
-    for (std::size_t k = 0; k < label.size(); ++k) fits = fits && std::string_view("#:+").find(lines[y][x0 + k]) != std::string_view::npos;
+    for (std::size_t k = 0; k < label.size(); ++k)
+      fits = fits && std::string_view("#:+").find(lines[y][x0 + k]) != std::string_view::npos;
     if (fits) lines[y].replace(static_cast<std::size_t>(x0), label.size(), label);
   }
   std::string out;
@@ -159,7 +160,8 @@ std::vector<std::string> heading(const Options& o, const Feed& feed, const clien
   return out;
 }
 
-// The hinges beside the picture: "1 hinged  flips 1" (hinge k joins blocks k-1 and k), as many as fit.
+// The hinges beside the picture, "    1  hinged      0" (hinge k joins blocks k-1 and k; its flip-flops), as many as
+// fit.
 std::vector<std::string> hinge_panel(const client::State& s, int rows) {
   std::vector<std::string> out{"hinge  state   flips"};
   for (std::size_t k = 1; k < s.hinges.size() && static_cast<int>(out.size()) < rows; ++k) {

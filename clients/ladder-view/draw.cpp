@@ -177,8 +177,9 @@ void draw_hand(cairo_t* cr, const View& v, const client::Pose& top) {
   const double t = v.info.thickness, l = v.info.length, d = v.depth;
   const Vec3 fingers = hand_centre(v.info, top);
   const double finger_depth = fingers.z - 0.5 * d, arm = 1.2 * d;
-  const Box boxes[2] = {{{top.x, top.y, fingers.z + finger_depth + 0.5 * arm}, top.theta, {0.7 * t, 0.16 * l, 0.5 * arm}},
-                        {fingers, top.theta, {0.5 * t + 0.3 * t, 0.22 * l, finger_depth}}};
+  const Box boxes[2] = {
+      {{top.x, top.y, fingers.z + finger_depth + 0.5 * arm}, top.theta, {0.7 * t, 0.16 * l, 0.5 * arm}},  // forearm
+      {fingers, top.theta, {0.8 * t, 0.22 * l, finger_depth}}};                                            // fingers
   for (const Box& b : boxes)
     for (const FaceDef f : kFaces) {
       const double facing = v.towards_viewer(face_normal(b, f));
@@ -277,7 +278,8 @@ void draw_numbers(cairo_t* cr, const View& v, const client::State& s, const std:
     if (!shown[i]) continue;
     const Box b = v.block(s.blocks[i]);
     double right = -1e300;
-    for (int c = 0; c < 8; ++c) right = std::max(right, v.screen(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1)).x);
+    for (int c = 0; c < 8; ++c)
+      right = std::max(right, v.screen(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1)).x);
     const Point centre = v.cam.to_screen({s.blocks[i].x, s.blocks[i].y});
     draw_text_box(cr, right + 8, centre.y - 7, 12, {std::to_string(i)});
   }

@@ -204,11 +204,13 @@ TEST_F(Ladderctl, ListShowsBothServersOfTwoNetworkNamespaces) {
                dir + "b.log");
   const std::string in_b = net.shell_prefix('b', "file://" + xml_b);
   Result r;
+  const auto both = [&] {
+    return r.output.find(sim_id_ + "-a ") != std::string::npos && r.output.find(sim_id_ + "-b ") != std::string::npos;
+  };
   const auto deadline = Clock::now() + std::chrono::seconds(30);
   do {
     r = shell(in_b + kLadderctl + " list --domain " + d + " --timeout 3");
-  } while ((r.output.find(sim_id_ + "-a ") == std::string::npos || r.output.find(sim_id_ + "-b ") == std::string::npos) &&
-           Clock::now() < deadline);
+  } while (!both() && Clock::now() < deadline);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("2 ladders on DDS domain " + d + ":\n"), std::string::npos) << r.output;
   std::smatch m;

@@ -2,6 +2,8 @@
 // comes (escape sequences included), keys are typed into it, and its exit status is read.
 #pragma once
 
+#include "process.hpp"
+
 #include <pty.h>
 #include <signal.h>
 #include <sys/select.h>
@@ -23,13 +25,7 @@ class Pty {
     ws.ws_col = static_cast<unsigned short>(cols);
     ws.ws_row = static_cast<unsigned short>(rows);
     pid_ = forkpty(&fd_, nullptr, nullptr, &ws);
-    if (pid_ == 0) {
-      std::vector<char*> argv;
-      for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      execv(argv[0], argv.data());
-      _exit(127);
-    }
+    if (pid_ == 0) Process::exec(args);
   }
   Pty(const Pty&) = delete;
   Pty& operator=(const Pty&) = delete;

@@ -396,7 +396,8 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockAndItsTapesWhereTheStateHasThem
   ASSERT_TRUE(rippled) << "no flip-flop at hinge 5";
   // Every block has turned over (the bottom one last, and it swings on for a while).
   const auto turned = [](const client::State& st) {
-    return std::all_of(st.blocks.begin(), st.blocks.end(), [](const client::Pose& p) { return std::cos(p.theta) < -0.7; });
+    return std::all_of(st.blocks.begin(), st.blocks.end(),
+                       [](const client::Pose& p) { return std::cos(p.theta) < -0.7; });
   };
   ASSERT_TRUE(client_->wait_state(turned, Millis(30000))) << "the blocks did not all turn over";
   const client::State after = pause();
@@ -504,7 +505,8 @@ TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
   EXPECT_GT(std::stod(m[1]), 0.2);
   EXPECT_EQ(m[1], m[2]);
   // Asked for a time still ahead, it waits and says nothing of the kind.
-  const Result ahead = viewer("--png " + out_ + "-ahead.png --at " + std::to_string(client_->latest_state()->sim_time + 1));
+  const double later = client_->latest_state()->sim_time + 1;
+  const Result ahead = viewer("--png " + out_ + "-ahead.png --at " + std::to_string(later));
   ASSERT_EQ(ahead.code, 0) << ahead.output;
   EXPECT_EQ(ahead.output.find("already"), std::string::npos) << ahead.output;
 }
@@ -599,6 +601,20 @@ class Xvfb {
   std::optional<Process> process_;
 };
 
+// Where the window of this title is on the screen (xdotool, once it is mapped), or nothing within kStart.
+std::optional<Point> window_origin(const Xvfb& x, const std::string& title) {
+  Result geometry;
+  const bool found = eventually(
+      [&] {
+        geometry = shell("DISPLAY=" + x.display() + " xdotool search --name '" + title + "' getwindowgeometry --shell");
+        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
+      },
+      kStart);
+  std::smatch m;
+  if (!found || !std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) return std::nullopt;
+  return Point{std::stod(m[1]), std::stod(m[2])};
+}
+
 TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   const client::State s = pause();  // a still picture
   Xvfb x(out_ + "-x");
@@ -611,17 +627,9 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
       << viewer.log();
   // Where the window is on the screen.
   const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
-  Result geometry;
-  ASSERT_TRUE(eventually(
-      [&] {
-        geometry = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowgeometry --shell");
-        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
-      },
-      kStart))
-      << geometry.output;
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
-  const Point origin{std::stod(m[1]), std::stod(m[2])};
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << "no window 'ladder-view: " << sim_id_ << "' on the screen; the viewer's log:\n" << viewer.log();
+  const Point origin = *where;
 
   // The screenshot shows each block's wide face where the state has it (once the window has painted), and its tapes.
   const client::SceneInfo info = *client_->scene_info();
@@ -699,21 +707,12 @@ TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
   ASSERT_TRUE(eventually([&] { return viewer.log().find("(6 blocks)") != std::string::npos; }, kStart))
       << viewer.log();
   const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
-  Result geometry;
-  ASSERT_TRUE(eventually(
-      [&] {
-        geometry = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowgeometry --shell");
-        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
-      },
-      kStart))
-      << geometry.output;
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
-  const Point origin{std::stod(m[1]), std::stod(m[2])};
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << "no window 'ladder-view: " << sim_id_ << "' on the screen; the viewer's log:\n" << viewer.log();
+  const Point origin = *where;
   // Keys go to the window under the pointer (no window manager).
-  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(origin.x) + 5) + " " + std::to_string(int(origin.y) + 5) +
-                  " key Tab").code,
-            0);
+  const std::string corner = std::to_string(int(origin.x) + 5) + " " + std::to_string(int(origin.y) + 5);
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + corner + " key Tab").code, 0);
   ASSERT_TRUE(eventually([&] { return viewer.log().find("switched to sim id '" + sim_id_ + "-2' (2 ladders") !=
                                       std::string::npos; },
                          kStart))
@@ -726,9 +725,10 @@ TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
   const client::SceneInfo info = *other.scene_info();
   const Point p = on_wide_face(*cam, info, s2->blocks[2], 0.1, -0.16);
   // The picture shows the other ladder: its block 2's face where its state has it; a click there pokes it.
-  ASSERT_TRUE(eventually([&] { return distance(x.screen().at({p.x + origin.x, p.y + origin.y}), view::face_colour(2)) < 12; },
-                         kStart))
-      << viewer.log();
+  const auto shows_it = [&] {
+    return distance(x.screen().at({p.x + origin.x, p.y + origin.y}), view::face_colour(2)) < 12;
+  };
+  ASSERT_TRUE(eventually(shows_it, kStart)) << viewer.log();
   ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
                   std::to_string(int(p.y + origin.y)) + " click 1").code,
             0);
