@@ -234,10 +234,10 @@ class Viewer {
       drawn_ = draw(screen_.cairo(), camera_, *link_->feed.info(), *s, hud);
     else
       draw_empty(screen_.cairo(), camera_, hud);
-    // The plots in the right half, lower part: the ladder hangs in the middle, the overlay is on the left.
+    // The plots lower right, clear of the ladder the view centres (the overlay is on the left).
     if (plots_)
-      draw_plots(screen_.cairo(), history_, 0.58 * screen_.width(), 0.45 * screen_.height(),
-                 0.4 * screen_.width(), 0.5 * screen_.height());
+      draw_plots(screen_.cairo(), history_, 0.64 * screen_.width(), 0.45 * screen_.height(),
+                 0.35 * screen_.width(), 0.5 * screen_.height());
     screen_.present();
     draw_ms_ = 1e3 * seconds(Clock::now() - t0);
     drawn_at_ = Clock::now();
