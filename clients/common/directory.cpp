@@ -34,28 +34,31 @@ struct Participants {
   std::set<Guid> state_readers;
 };
 
+// Reads (without taking: each pass sees them all again) up to 256 samples of a built-in topic, on the reader's
+// loan, and passes each valid one to f.
+template <class T, class F>
+void read_builtin(const transport::Entity& reader, F&& f) {
+  constexpr int kMax = 256;
+  void* buf[kMax] = {};  // buf[0] null: Cyclone lends its own memory
+  dds_sample_info_t info[kMax];
+  const dds_return_t n = dds_read(reader.get(), buf, info, kMax, kMax);
+  for (dds_return_t i = 0; i < n; ++i)
+    if (info[i].valid_data) f(*static_cast<const T*>(buf[i]));
+  if (n > 0) dds_return_loan(reader.get(), buf, n);
+}
+
 void read_builtins(const transport::Entity& participants, const transport::Entity& subscriptions, Participants& out) {
-  void* buf[64] = {};
-  dds_sample_info_t info[64];
-  const dds_return_t n = dds_read(participants.get(), buf, info, 64, 64);
-  for (dds_return_t i = 0; i < n; ++i) {
-    if (!info[i].valid_data) continue;
-    const auto* p = static_cast<const dds_builtintopic_participant_t*>(buf[i]);
+  read_builtin<dds_builtintopic_participant_t>(participants, [&](const dds_builtintopic_participant_t& p) {
     char* host = nullptr;
-    if (p->qos && dds_qget_prop(p->qos, "__Hostname", &host) && host) {
-      out.host[key_of(p->key)] = host;
+    if (p.qos && dds_qget_prop(p.qos, "__Hostname", &host) && host) {
+      out.host[key_of(p.key)] = host;
       dds_free(host);
     }
-  }
-  if (n > 0) dds_return_loan(participants.get(), buf, n);
-  const dds_return_t m = dds_read(subscriptions.get(), buf, info, 64, 64);
-  for (dds_return_t i = 0; i < m; ++i) {
-    if (!info[i].valid_data) continue;
-    const auto* s = static_cast<const dds_builtintopic_endpoint_t*>(buf[i]);
-    if (s->topic_name && std::strcmp(s->topic_name, "ladder/State") == 0)
-      out.state_readers.insert(key_of(s->participant_key));
-  }
-  if (m > 0) dds_return_loan(subscriptions.get(), buf, m);
+  });
+  read_builtin<dds_builtintopic_endpoint_t>(subscriptions, [&](const dds_builtintopic_endpoint_t& s) {
+    if (s.topic_name && std::strcmp(s.topic_name, "ladder/State") == 0)
+      out.state_readers.insert(key_of(s.participant_key));
+  });
 }
 
 }  // namespace

@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");
   app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
-  auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (Ctrl-C stops)");
+  auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (q or Ctrl-C stops; t tips)");
   png->excludes(ascii);
   app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(CLI::PositiveNumber);
   app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
