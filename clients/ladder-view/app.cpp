@@ -1,7 +1,9 @@
 #include "app.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <utility>
 
 namespace ladder::view {
 
@@ -41,6 +43,31 @@ std::string Feed::why_undrawable() const {
          std::to_string(i->generation) + " (is another program publishing under this sim id?)";
 }
 
+void Outbox::send(const ladder_msg_Command& c, const std::string& what) {
+  if (!client_.wait_for_server(client::Millis(0))) {
+    ready_.push_back(what + ": not sent, no server");
+    return;
+  }
+  pending_.push_back({client_.send(c), what, std::chrono::steady_clock::now()});
+}
+
+std::vector<std::string> Outbox::take() {
+  constexpr auto kAnswerTimeout = std::chrono::seconds(5);
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    const auto a = client_.wait_ack(it->id, client::Millis(0));
+    if (!a && std::chrono::steady_clock::now() - it->sent < kAnswerTimeout) {
+      ++it;
+      continue;
+    }
+    char buf[96];
+    if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
+    ready_.push_back(it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer"));
+    it = pending_.erase(it);
+  }
+  if (!ready_.empty()) last_ = ready_.back();
+  return std::exchange(ready_, {});
+}
+
 bool found_server(const Options& o, client::Client& c) {
   if (c.wait_for_server(client::Millis(static_cast<long>(o.timeout * 1000)))) return true;
   std::cerr << "ladder-view: " << no_server(o) << "\n";
@@ -56,11 +83,18 @@ std::string no_server(const Options& o) {
 
 Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,
                   int height) {
-  if (!o.view) return fit(info, state, width, height);
+  if (!o.view) return o.side ? fit(info, state, width, height, 40, 0, 0) : fit(info, state, width, height);
   Camera c = *o.view;
   c.width = width;
   c.height = height;
   return c;
+}
+
+std::string camera_text(const Camera& c) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "view centre %.9g,%.9g m, %.9g px/m, yaw %.9g deg, pitch %.9g deg", c.cx, c.cy,
+                c.scale, c.yaw * 180 / M_PI, c.pitch * 180 / M_PI);
+  return buf;
 }
 
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats) {

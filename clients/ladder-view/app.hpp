@@ -25,7 +25,9 @@ struct Options {
   int width = 900, height = 700;  // [px] window and PNG; --ascii: characters (0 = the terminal's size)
   std::string png;
   std::optional<double> at;       // --png: the first state at or after this sim time
-  std::optional<Camera> view;     // --view X,Y,SCALE: a fixed camera instead of framing the ladder
+  std::optional<Camera> view;     // --view X,Y,SCALE[,YAW,PITCH]: a fixed camera instead of framing the ladder
+  bool side = false;              // --side: the side view (the model's plane) instead of the 3-D one
+  bool numbers = false;           // --numbers: each block's number beside it (the window: key n)
   bool ascii = false;
   int frames = 0;                 // --ascii: stop after this many frames (0 = until Ctrl-C)
   double fps = 10;                // --ascii: frames per second at most
@@ -62,6 +64,30 @@ class Feed {
   Clock::time_point news_, drawable_;
 };
 
+// Commands sent from a key or a click, their answers picked up later without waiting (the window and the terminal
+// must stay responsive while the server is away).
+class Outbox {
+ public:
+  explicit Outbox(client::Client& c) : client_(c) {}
+  // Sends `c` now; `what` names it in the answer ("tip", "poke block 3"). With no server: an answer at once.
+  void send(const ladder_msg_Command& c, const std::string& what);
+  // The answers that came (or timed out) since the last call, e.g. "tip: accepted at t = 1.234 s"; the latest also
+  // stays in last().
+  std::vector<std::string> take();
+  const std::string& last() const { return last_; }
+
+ private:
+  struct Pending {
+    std::uint64_t id;
+    std::string what;
+    std::chrono::steady_clock::time_point sent;
+  };
+  client::Client& client_;
+  std::vector<Pending> pending_;
+  std::vector<std::string> ready_;
+  std::string last_;
+};
+
 int run_png(const Options& o);
 int run_ascii(const Options& o);
 int run_window(const Options& o);
@@ -70,9 +96,13 @@ int run_window(const Options& o);
 bool found_server(const Options& o, client::Client& c);
 // "no ladderd with sim id ... on DDS domain N after T s; ..." (the same words as ladderctl's).
 std::string no_server(const Options& o);
-// The camera for `state`: the fixed --view if given, else the ladder framed in width x height.
+// The camera for `state`: the fixed --view if given, else the ladder framed in width x height (seen from the
+// side with --side).
 Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,
                   int height);
+// "view centre X,Y m, S px/m, yaw A deg, pitch B deg": how --png and the window report their camera (--view
+// takes the same numbers).
+std::string camera_text(const Camera& c);
 // The HUD's overlay lines from the latest Stats and SceneInfo.
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats);
 

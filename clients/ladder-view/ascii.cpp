@@ -3,6 +3,7 @@
 #include "app.hpp"
 
 #include <sys/ioctl.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -10,6 +11,8 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <string_view>
+#include <vector>
 
 namespace ladder::view {
 
@@ -25,9 +28,10 @@ struct Glyph {
   char ch;
   int priority;
 };
-constexpr Glyph kGlyphs[] = {{kBackground, ' ', 0}, {kDepth, ':', 1},   {kFaceEven, '#', 2}, {kFaceOdd, '#', 2},
-                             {kRibbon, '+', 3},     {kHinge, 'o', 4},   {kLocked, '@', 5},   {kBroken, 'x', 5},
-                             {kGrip, '*', 5}};
+constexpr Glyph kGlyphs[] = {{kBackground, ' ', 0}, {kDepth, '.', 1},    {kSideEven, ':', 1}, {kSideOdd, ':', 1},
+                             {kFaceEven, '#', 2},   {kFaceOdd, '#', 2},  {kRibbon, '+', 3},   {kHand, '%', 3},
+                             {kHandShade, '%', 3},
+                             {kHinge, 'o', 4},      {kLocked, '@', 5},   {kBroken, 'x', 5},   {kGrip, '*', 5}};
 
 const Glyph& nearest(std::uint32_t argb) {
   const int r = static_cast<int>((argb >> 16) & 0xff), g = static_cast<int>((argb >> 8) & 0xff),
@@ -62,6 +66,7 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   cairo_t* cr = cairo_create(surface);
   Hud hud;
   hud.show = false;
+  hud.scale_bar = false;
   draw(cr, cam, info, state, hud);
   cairo_destroy(cr);
   cairo_surface_flush(surface);
@@ -78,14 +83,15 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
       lines[y][x] = (a.priority >= b.priority ? a : b).ch;
     }
   cairo_surface_destroy(surface);
-  // Block numbers at the centres, where the whole number lands on that block's face.
+  // Block numbers at the centres, where the whole number lands on a block (its faces, sides or tapes).
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {
     const Point s = cam.to_screen({state.blocks[i].x, state.blocks[i].y});
     const std::string label = std::to_string(i);
     const int y = static_cast<int>(s.y / 2), x0 = static_cast<int>(s.x) - static_cast<int>(label.size() - 1) / 2;
     if (y < 0 || y >= rows || x0 < 0 || x0 + static_cast<int>(label.size()) > cols) continue;
     bool fits = true;
-    for (std::size_t k = 0; k < label.size(); ++k) fits = fits && lines[y][x0 + k] == '#';
+    for (std::size_t k = 0; k < label.size(); ++k)
+      fits = fits && std::string_view("#:+").find(lines[y][x0 + k]) != std::string_view::npos;
     if (fits) lines[y].replace(static_cast<std::size_t>(x0), label.size(), label);
   }
   std::string out;
@@ -93,47 +99,160 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   return out;
 }
 
+namespace {
+
+// The terminal while the view runs: keys one at a time without echo (when standard input is a terminal), the cursor
+// hidden; both restored when the view ends, however it ends (q, a signal, no server, an exception).
+class Terminal {
+ public:
+  explicit Terminal(bool tty) : tty_(tty), keys_(isatty(STDIN_FILENO) && tcgetattr(STDIN_FILENO, &saved_) == 0) {
+    if (keys_) {
+      termios raw = saved_;
+      raw.c_lflag &= ~static_cast<tcflag_t>(ICANON | ECHO);
+      raw.c_cc[VMIN] = 0;
+      raw.c_cc[VTIME] = 0;
+      tcsetattr(STDIN_FILENO, TCSANOW, &raw);
+    }
+    if (tty_) std::fputs("\x1b[?25l\x1b[2J", stdout);  // hide the cursor, clear once; then redraw in place
+  }
+  ~Terminal() {
+    if (keys_) tcsetattr(STDIN_FILENO, TCSANOW, &saved_);
+    if (tty_) std::fputs("\x1b[?25h\n", stdout);
+    std::fflush(stdout);
+  }
+  Terminal(const Terminal&) = delete;
+  Terminal& operator=(const Terminal&) = delete;
+  bool keys() const { return keys_; }
+  // The keys typed since the last call.
+  std::string typed() const {
+    std::string out;
+    if (!keys_) return out;
+    char buf[64];
+    for (ssize_t n; (n = read(STDIN_FILENO, buf, sizeof buf)) > 0;) out.append(buf, static_cast<std::size_t>(n));
+    return out;
+  }
+
+ private:
+  bool tty_;
+  termios saved_{};
+  bool keys_;
+};
+
+// The heading: what is shown, the keys (when they work here), the last command's answer, or until there is one how
+// to tip the ladder from elsewhere.
+std::vector<std::string> heading(const Options& o, const Feed& feed, const client::State& s, bool keys,
+                                 const std::string& answer) {
+  char line[256], rtf[32] = "-";
+  if (feed.stats()) std::snprintf(rtf, sizeof rtf, "%.2f", feed.stats()->real_time_factor);
+  // What changes first, the sim id last: a narrow terminal cuts the end.
+  std::snprintf(line, sizeof line, "t = %.3f s%s  real-time x%s  %u blocks  sim id '%s'", s.sim_time,
+                s.paused ? "  PAUSED" : "", rtf, feed.info()->blocks, o.sim_id.c_str());
+  std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? "  (waiting for ladderd: no news for a while)"
+                                                                       : "")};
+  const std::string elsewhere =
+      "from another terminal: ladderctl --sim-id " + o.sim_id + " --domain " + std::to_string(o.domain) + " tip";
+  if (keys) {
+    out.emplace_back("keys: t tip  space pause/resume  s step  r reset  q quit");
+    out.push_back(answer.empty() ? elsewhere : answer);
+  } else {
+    out.push_back(elsewhere);
+  }
+  return out;
+}
+
+// The hinges beside the picture, "    1  hinged      0" (hinge k joins blocks k-1 and k; its flip-flops), as many as
+// fit.
+std::vector<std::string> hinge_panel(const client::State& s, int rows) {
+  std::vector<std::string> out{"hinge  state   flips"};
+  for (std::size_t k = 1; k < s.hinges.size() && static_cast<int>(out.size()) < rows; ++k) {
+    const client::Hinge& h = s.hinges[k];
+    const char* state = h.status == ladder_msg_BROKEN ? "broken" : h.status == ladder_msg_LOCKED ? "locked" : "hinged";
+    char line[64];
+    std::snprintf(line, sizeof line, "%5zu  %-6s %6u", k, state, h.flips);
+    out.emplace_back(line);
+  }
+  if (static_cast<int>(out.size()) == rows && s.hinges.size() > static_cast<std::size_t>(rows))
+    out.back() = "  ... " + std::to_string(s.hinges.size() - 1) + " hinges";
+  return out;
+}
+
+constexpr int kPanel = 22;  // [characters] the hinge panel's width, when the terminal is wide enough
+
+// What a key does: q quits; t, space, s and r send a command.
+bool on_key(char k, Outbox& out, const client::State* s) {
+  namespace cmd = client::cmd;
+  switch (k) {
+    case 'q': case 'Q': return false;
+    case 't': out.send(cmd::tip(), "tip"); break;
+    case ' ': if (s && s->paused) out.send(cmd::resume(), "resume"); else out.send(cmd::pause(), "pause"); break;
+    case 's': out.send(cmd::step(1), "step 1"); break;
+    case 'r': out.send(cmd::reset(), "reset"); break;
+    default: break;
+  }
+  return true;
+}
+
+std::string frame_text(const Options& o, const Feed& feed, const client::State& s, bool keys,
+                       const std::string& answer, int cols, int rows, bool tty) {
+  const std::vector<std::string> head = heading(o, feed, s, keys, answer);
+  rows = std::max(4, rows - static_cast<int>(head.size()));
+  const bool panel = cols >= 40 + kPanel;
+  const int picture = panel ? cols - kPanel : cols;
+  const Camera cam = camera_for(o, *feed.info(), s, picture, 2 * rows);
+  const std::string art = render_ascii(cam, *feed.info(), s, picture, rows);
+  const std::vector<std::string> side = panel ? hinge_panel(s, rows) : std::vector<std::string>{};
+  std::string frame = tty ? "\x1b[H" : "";
+  // On a terminal a line longer than it is wide would wrap and push the picture down: cut there.
+  for (const std::string& h : head) frame += tty ? h.substr(0, static_cast<std::size_t>(cols)) + "\x1b[K\n" : h + "\n";
+  std::size_t at = 0;
+  for (int r = 0; r < rows; ++r) {
+    const std::size_t nl = art.find('\n', at);
+    frame += art.substr(at, nl - at);
+    at = nl + 1;
+    if (r < static_cast<int>(side.size())) frame += "  " + side[static_cast<std::size_t>(r)];
+    frame += r + 1 < rows ? (tty ? "\x1b[K\n" : "\n") : "";
+  }
+  frame += tty ? "\x1b[J" : "\n";
+  return frame;
+}
+
+}  // namespace
+
 int run_ascii(const Options& o) {
   client::Client c(o.domain, o.sim_id);
   if (!found_server(o, c)) return kNoServer;
   g_stop = false;
-  std::signal(SIGINT, on_stop);
-  std::signal(SIGTERM, on_stop);
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_stop);
   const bool tty = isatty(STDOUT_FILENO);
-  if (tty) std::fputs("\x1b[?25l\x1b[2J", stdout);  // hide the cursor, clear once; then redraw in place
+  const Terminal term(tty);
   Feed feed(c);
+  Outbox out(c);
   const auto period = client::Millis(static_cast<long>(1000 / std::max(0.1, o.fps)));
+  const auto tick = std::min(period, client::Millis(50));  // keys are read at least this often
+  auto last_frame = std::chrono::steady_clock::now() - period;
   int frames = 0;
   bool fresh = true;
   while (!g_stop && (o.frames == 0 || frames < o.frames)) {
-    fresh = feed.update(period) || fresh;
+    fresh = feed.update(tick) || fresh;
     const client::State* s = feed.state();
+    for (const char k : term.typed())
+      if (!on_key(k, out, s)) g_stop = true;
+    if (!out.take().empty()) fresh = true;  // the answer goes on the heading
     if (!s && feed.undrawable() > o.timeout) {
-      if (tty) std::fputs("\x1b[?25h\n", stdout);
       std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
                 << " s: " << feed.why_undrawable() << "\n";
       return kNoServer;
     }
     const bool waiting = feed.quiet() > 3;
-    if (!s || (!fresh && !waiting)) continue;
+    if (!s || (!fresh && !waiting) || std::chrono::steady_clock::now() - last_frame < period) continue;
     int cols = o.width, rows = o.height;
     if (tty) terminal_size(cols, rows);
-    rows = std::max(4, rows - 2);  // two lines of text
-    const Camera cam = camera_for(o, *feed.info(), *s, cols, 2 * rows);
-    char head[256], rtf[32] = "-";
-    if (feed.stats()) std::snprintf(rtf, sizeof rtf, "%.2f", feed.stats()->real_time_factor);
-    std::snprintf(head, sizeof head, "%s  t = %.3f s  real-time x%s%s  %u blocks", o.sim_id.c_str(), s->sim_time, rtf,
-                  s->paused ? "  PAUSED" : "", feed.info()->blocks);
-    std::string frame = tty ? "\x1b[H" : "";
-    frame += std::string(head) + (waiting ? "  (waiting for ladderd: no news for a while)" : "") + "\n";
-    frame += render_ascii(cam, *feed.info(), *s, cols, rows);
-    frame += tty ? "\x1b[J" : "\n";
-    std::fputs(frame.c_str(), stdout);
+    std::fputs(frame_text(o, feed, *s, term.keys(), out.last(), cols, rows, tty).c_str(), stdout);
     std::fflush(stdout);
+    last_frame = std::chrono::steady_clock::now();
     fresh = false;
     ++frames;
   }
-  if (tty) std::fputs("\x1b[?25h\n", stdout);
   return kOk;
 }
 

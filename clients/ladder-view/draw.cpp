@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <utility>
 
@@ -10,18 +11,37 @@ namespace ladder::view {
 
 namespace {
 
-// The blocks have depth: the real toy's are about half as deep as they are long. An oblique projection shows the
-// back face up and to the right of the front one; this is that offset in world units per unit of depth.
-constexpr Point kDepthDir{0.34, 0.22};
-
-Point depth_offset(const client::SceneInfo& info) {
-  const double d = 0.5 * info.length;
-  return {kDepthDir.x * d, kDepthDir.y * d};
-}
+constexpr double kMaxAngle = 80 * M_PI / 180;  // orbit limit: the plane z = 0 stays in sight
 
 Point rotate(double theta, Point p) {
   const double c = std::cos(theta), s = std::sin(theta);
   return {c * p.x - s * p.y, s * p.x + c * p.y};
+}
+
+// The camera's rotation R = Rx(pitch) Ry(yaw), rows: the view's x, y and z axes in world coordinates.
+struct Rotation {
+  double m[3][3];
+  Rotation(double yaw, double pitch) {
+    const double c = std::cos(yaw), s = std::sin(yaw), cp = std::cos(pitch), sp = std::sin(pitch);
+    const double r[3][3] = {{c, 0, s}, {sp * s, cp, -sp * c}, {-cp * s, sp, cp * c}};
+    std::copy(&r[0][0], &r[0][0] + 9, &m[0][0]);
+  }
+  Vec3 apply(Vec3 w) const {
+    return {m[0][0] * w.x + m[0][1] * w.y + m[0][2] * w.z, m[1][0] * w.x + m[1][1] * w.y + m[1][2] * w.z,
+            m[2][0] * w.x + m[2][1] * w.y + m[2][2] * w.z};
+  }
+  Vec3 inverse(Vec3 v) const {
+    return {m[0][0] * v.x + m[1][0] * v.y + m[2][0] * v.z, m[0][1] * v.x + m[1][1] * v.y + m[2][1] * v.z,
+            m[0][2] * v.x + m[1][2] * v.y + m[2][2] * v.z};
+  }
+};
+
+// The point of the plane z = 0 in front of which view coordinates (vx, vy) lie (relative to the target): the view
+// ray (vx, vy, t) turned back into the world, with the t that puts it on the plane.
+Point on_plane(const Rotation& r, double vx, double vy) {
+  const double t = -(r.m[0][2] * vx + r.m[1][2] * vy) / r.m[2][2];
+  const Vec3 w = r.inverse({vx, vy, t});
+  return {w.x, w.y};
 }
 
 void set_colour(cairo_t* cr, Rgb c, double alpha = 1) {
@@ -34,30 +54,76 @@ void polygon(cairo_t* cr, const Point* p, int n) {
   cairo_close_path(cr);
 }
 
-// Which blocks to draw, and at what level of detail. A block is on screen when its bounding circle (grown by the
-// depth offset) meets the image.
+// A box turned by theta about z: centre, half sizes along its own x, y and z.
+struct Box {
+  Vec3 centre;
+  double theta = 0;
+  Vec3 half;
+  Vec3 corner(int sx, int sy, int sz) const {  // s* = +-1
+    const Point r = rotate(theta, {sx * half.x, sy * half.y});
+    return {centre.x + r.x, centre.y + r.y, centre.z + sz * half.z};
+  }
+  Vec3 local_to_world(Vec3 l) const {
+    const Point r = rotate(theta, {l.x, l.y});
+    return {centre.x + r.x, centre.y + r.y, centre.z + l.z};
+  }
+};
+
+// The six faces of a box: which axis (0 x, 1 y, 2 z) and side. A face is drawn when its normal faces the viewer.
+struct FaceDef {
+  int axis, sign;
+};
+constexpr FaceDef kFaces[6] = {{0, 1}, {0, -1}, {1, 1}, {1, -1}, {2, 1}, {2, -1}};
+
+Vec3 face_normal(const Box& b, FaceDef f) {
+  if (f.axis == 2) return {0, 0, double(f.sign)};
+  const Point n = rotate(b.theta, f.axis == 0 ? Point{double(f.sign), 0} : Point{0, double(f.sign)});
+  return {n.x, n.y, 0};
+}
+
+// The face's four corners, in order round it.
+std::array<Vec3, 4> face_corners(const Box& b, FaceDef f) {
+  static constexpr int kRound[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+  std::array<Vec3, 4> q;
+  for (int i = 0; i < 4; ++i) {
+    int s[3];
+    s[f.axis] = f.sign;
+    s[(f.axis + 1) % 3] = kRound[i][0];
+    s[(f.axis + 2) % 3] = kRound[i][1];
+    q[i] = b.corner(s[0], s[1], s[2]);
+  }
+  return q;
+}
+
+// Which blocks to draw, and at what level of detail. A block is on screen when its bounding sphere meets the image.
 struct View {
   const Camera& cam;
   const client::SceneInfo& info;
-  double radius_px;  // bounding circle of a block and its depth
+  Rotation rot;
+  double depth;      // [m] of a block
+  double radius_px;  // bounding sphere of a block
   double length_px;  // a block's length on screen
 
   View(const Camera& c, const client::SceneInfo& i)
-      : cam(c), info(i), radius_px((0.5 * std::hypot(i.length, i.thickness) + std::hypot(depth_offset(i).x,
-                                                                                         depth_offset(i).y)) *
-                                   c.scale),
+      : cam(c), info(i), rot(c.yaw, c.pitch), depth(depth_of(i)),
+        radius_px(0.5 * std::sqrt(i.length * i.length + i.thickness * i.thickness + depth * depth) * c.scale),
         length_px(i.length * c.scale) {}
 
   bool visible(const client::Pose& p) const {
     const Point s = cam.to_screen({p.x, p.y});
     return s.x > -radius_px && s.x < cam.width + radius_px && s.y > -radius_px && s.y < cam.height + radius_px;
   }
-  Point screen(Point w) const { return cam.to_screen(w); }
+  Point screen(Vec3 w) const { return cam.project(w); }
+  double towards_viewer(Vec3 n) const { return rot.apply(n).z; }
+  double view_depth(Vec3 w) const { return rot.apply(w).z; }
+  Box block(const client::Pose& p) const {
+    return {{p.x, p.y, 0}, p.theta, {0.5 * info.thickness, 0.5 * info.length, 0.5 * depth}};
+  }
 };
 
 // Far away, a block is a few pixels: the ladder is drawn as one polyline through the centres.
 void draw_chain(cairo_t* cr, const View& v, const std::vector<client::Pose>& blocks) {
-  cairo_set_line_width(cr, std::max(1.0, v.info.thickness * v.cam.scale));
+  cairo_set_line_width(cr, std::max(1.0, std::max(v.info.thickness, 0.7 * v.depth) * v.cam.scale));
   cairo_set_line_cap(cr, CAIRO_LINE_CAP_ROUND);
   bool open = false;
   for (const client::Pose& p : blocks) {
@@ -65,7 +131,7 @@ void draw_chain(cairo_t* cr, const View& v, const std::vector<client::Pose>& blo
       open = false;
       continue;
     }
-    const Point s = v.screen({p.x, p.y});
+    const Point s = v.cam.to_screen({p.x, p.y});
     if (open)
       cairo_line_to(cr, s.x, s.y);
     else
@@ -76,61 +142,76 @@ void draw_chain(cairo_t* cr, const View& v, const std::vector<client::Pose>& blo
   cairo_stroke(cr);
 }
 
-// The sides seen in depth: the back face and the four faces swept by the edges, all behind every front face.
-void draw_depth(cairo_t* cr, const View& v, const std::array<Point, 4>& front) {
-  const Point d = depth_offset(v.info);
-  const Point off{d.x * v.cam.scale, -d.y * v.cam.scale};
-  for (int e = 0; e < 4; ++e) {
-    const Point a = front[e], b = front[(e + 1) % 4];
-    Point q[4] = {a, b, {b.x + off.x, b.y + off.y}, {a.x + off.x, a.y + off.y}};
-    // One winding for every quad: the fill rule (non-zero) would cut holes where opposite windings overlap.
-    const double area = (b.x - a.x) * off.y - (b.y - a.y) * off.x;
-    if (area < 0) std::swap(q[1], q[3]);
+// The tapes on a wide face: thin quads along the whole length, lying on it.
+void draw_tapes(cairo_t* cr, const View& v, const Box& b, int sign, int hinge, int block) {
+  for (const double zc : tape_centres(hinge, block)) {
+    const double x = sign * b.half.x, z0 = (zc - 0.5 * kTapeWidth) * v.depth, z1 = (zc + 0.5 * kTapeWidth) * v.depth;
+    const Point q[4] = {v.screen(b.local_to_world({x, -b.half.y, z0})), v.screen(b.local_to_world({x, -b.half.y, z1})),
+                        v.screen(b.local_to_world({x, b.half.y, z1})), v.screen(b.local_to_world({x, b.half.y, z0}))};
     polygon(cr, q, 4);
   }
-}
-
-std::array<Point, 4> screen_outline(const View& v, const client::Pose& p) {
-  std::array<Point, 4> o = outline(v.info, p);
-  for (Point& q : o) q = v.screen(q);
-  return o;
-}
-
-// Ribbons (paper, Figure 3): hinge k with corner c wraps corner (k-1, c^1) -> (k, c) -> (k, c^1), along the two
-// blocks' faces on the hinge's side. A broken hinge has no ribbon; seen from the front, the front outer ribbon
-// hides the others, so that is the one drawn.
-void draw_ribbons(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown) {
-  cairo_set_line_width(cr, std::clamp(0.1 * v.info.thickness * v.cam.scale, 1.0, 4.0));
-  cairo_set_line_join(cr, CAIRO_LINE_JOIN_ROUND);
-  for (std::size_t k = 1; k < s.blocks.size() && k < s.hinges.size(); ++k) {
-    const client::Hinge& h = s.hinges[k];
-    if (h.status == ladder_msg_BROKEN || !(shown[k - 1] || shown[k])) continue;
-    const int c = h.corner, ki = static_cast<int>(k);
-    const Point a = v.screen(hinge_particle(v.info, ki - 1, c ^ 1, s.blocks[k - 1]));
-    const Point m = v.screen(hinge_particle(v.info, ki, c, s.blocks[k]));
-    const Point b = v.screen(hinge_particle(v.info, ki, c ^ 1, s.blocks[k]));
-    cairo_move_to(cr, a.x, a.y);
-    cairo_line_to(cr, m.x, m.y);
-    cairo_line_to(cr, b.x, b.y);
-  }
   set_colour(cr, kRibbon);
-  cairo_stroke(cr);
+  cairo_fill(cr);
 }
 
-// Hinge points: white when hinged; a locked pair gets a red dot and red outlines; a broken hinge a grey cross on
-// each of its two particles.
+// One block: its faces that face the viewer (a box's never overlap on screen), the tapes on its wide faces.
+void draw_block(cairo_t* cr, const View& v, const client::State& s, int i, bool tapes) {
+  const Box b = v.block(s.blocks[static_cast<std::size_t>(i)]);
+  for (const FaceDef f : kFaces) {
+    if (v.towards_viewer(face_normal(b, f)) <= 1e-9) continue;
+    const std::array<Vec3, 4> w = face_corners(b, f);
+    Point q[4];
+    for (int k = 0; k < 4; ++k) q[k] = v.screen(w[k]);
+    polygon(cr, q, 4);
+    set_colour(cr, f.axis == 0 ? face_colour(i) : f.axis == 2 ? side_colour(i) : kDepth);
+    cairo_fill(cr);
+    if (f.axis != 0 || !tapes) continue;
+    if (const int h = tapes_on(s, i, f.sign); h >= 0) draw_tapes(cr, v, b, f.sign, h, i);
+  }
+}
+
+// The hand on a held top block: fingers pinching block 0 at its centre from the front (its +z side) and the
+// forearm coming out toward the viewer, the axis the wrist turns the block about when it tips the ladder. Shaded by
+// how squarely each face meets the view.
+void draw_hand(cairo_t* cr, const View& v, const client::Pose& top) {
+  const double t = v.info.thickness, l = v.info.length, d = v.depth;
+  const Vec3 fingers = hand_centre(v.info, top);
+  const double finger_depth = fingers.z - 0.5 * d, arm = 1.2 * d;
+  const Box boxes[2] = {
+      {{top.x, top.y, fingers.z + finger_depth + 0.5 * arm}, top.theta, {0.7 * t, 0.16 * l, 0.5 * arm}},  // forearm
+      {fingers, top.theta, {0.8 * t, 0.22 * l, finger_depth}}};                                            // fingers
+  for (const Box& b : boxes)
+    for (const FaceDef f : kFaces) {
+      const double facing = v.towards_viewer(face_normal(b, f));
+      if (facing <= 1e-9) continue;
+      const std::array<Vec3, 4> w = face_corners(b, f);
+      Point q[4];
+      for (int k = 0; k < 4; ++k) q[k] = v.screen(w[k]);
+      polygon(cr, q, 4);
+      const double k = std::clamp(facing, 0.0, 1.0);  // kHandShade (edge-on) to kHand (square on)
+      set_colour(cr, {static_cast<int>(kHandShade.r + k * (kHand.r - kHandShade.r)),
+                      static_cast<int>(kHandShade.g + k * (kHand.g - kHandShade.g)),
+                      static_cast<int>(kHandShade.b + k * (kHand.b - kHandShade.b))});
+      cairo_fill(cr);
+    }
+}
+
+// Hinges: each hinge's axis (its particle along the whole depth), white when hinged, red and thicker when locked,
+// with a dot at its front end; a broken hinge a grey cross on each of its two particles.
 void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown) {
   const double r = std::clamp(0.15 * v.info.thickness * v.cam.scale, 1.5, 5.0);
+  const double front = v.towards_viewer({0, 0, 1}) >= 0 ? 0.5 * v.depth : -0.5 * v.depth;
   for (std::size_t k = 1; k < s.blocks.size() && k < s.hinges.size(); ++k) {
     if (!(shown[k - 1] || shown[k])) continue;
     const client::Hinge& h = s.hinges[k];
     const int ki = static_cast<int>(k);
-    const Point p = v.screen(hinge_particle(v.info, ki, h.corner, s.blocks[k]));
+    const Point p2 = hinge_particle(v.info, ki, h.corner, s.blocks[k]);
+    const Point p = v.screen({p2.x, p2.y, front}), back = v.screen({p2.x, p2.y, -front});
     if (h.status == ladder_msg_BROKEN) {
-      const Point q = v.screen(hinge_particle(v.info, ki - 1, h.corner, s.blocks[k - 1]));
+      const Point q2 = hinge_particle(v.info, ki - 1, h.corner, s.blocks[k - 1]);
       set_colour(cr, kBroken);
       cairo_set_line_width(cr, 1.5);
-      for (const Point& x : {p, q}) {
+      for (const Point& x : {p, v.screen({q2.x, q2.y, front})}) {
         cairo_move_to(cr, x.x - r, x.y - r);
         cairo_line_to(cr, x.x + r, x.y + r);
         cairo_move_to(cr, x.x - r, x.y + r);
@@ -139,18 +220,14 @@ void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::
       cairo_stroke(cr);
       continue;
     }
-    if (h.status == ladder_msg_LOCKED) {
-      // The pair moves as one: both outlines in red (clear of the centres, where a test samples the faces).
-      set_colour(cr, kLocked);
-      cairo_set_line_width(cr, std::max(1.0, 0.4 * r));
-      for (std::size_t i : {k - 1, k}) {
-        const std::array<Point, 4> o = screen_outline(v, s.blocks[i]);
-        polygon(cr, o.data(), 4);
-      }
-      cairo_stroke(cr);
-    }
-    set_colour(cr, h.status == ladder_msg_LOCKED ? kLocked : kHinge);
-    cairo_arc(cr, p.x, p.y, h.status == ladder_msg_LOCKED ? 1.5 * r : r, 0, 2 * M_PI);
+    const bool locked = h.status == ladder_msg_LOCKED;
+    set_colour(cr, locked ? kLocked : kHinge);
+    cairo_set_line_width(cr, locked ? 1.2 * r : 0.6 * r);
+    cairo_set_line_cap(cr, CAIRO_LINE_CAP_ROUND);
+    cairo_move_to(cr, back.x, back.y);
+    cairo_line_to(cr, p.x, p.y);
+    cairo_stroke(cr);
+    cairo_arc(cr, p.x, p.y, locked ? 1.5 * r : r, 0, 2 * M_PI);
     cairo_fill(cr);
   }
 }
@@ -159,8 +236,8 @@ void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::
 void draw_grips(cairo_t* cr, const View& v, const client::State& s) {
   for (const ladder_msg_Grip& g : s.grips) {
     if (g.block < 0 || static_cast<std::size_t>(g.block) >= s.blocks.size()) continue;
-    const Point t = v.screen({g.target_x, g.target_y});
-    const Point b = v.screen({s.blocks[g.block].x, s.blocks[g.block].y});
+    const Point t = v.cam.to_screen({g.target_x, g.target_y});
+    const Point b = v.cam.to_screen({s.blocks[g.block].x, s.blocks[g.block].y});
     set_colour(cr, kGrip);
     cairo_set_line_width(cr, 2);
     const double dash[] = {4, 3};
@@ -195,6 +272,47 @@ void draw_text_box(cairo_t* cr, double x, double y, double size, const std::vect
   }
 }
 
+// Each drawn block's number, just right of where the block is on screen.
+void draw_numbers(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown) {
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+    if (!shown[i]) continue;
+    const Box b = v.block(s.blocks[i]);
+    double right = -1e300;
+    for (int c = 0; c < 8; ++c)
+      right = std::max(right, v.screen(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1)).x);
+    const Point centre = v.cam.to_screen({s.blocks[i].x, s.blocks[i].y});
+    draw_text_box(cr, right + 8, centre.y - 7, 12, {std::to_string(i)});
+  }
+}
+
+// A bar of 1, 2 or 5 times a power of ten metres, 60 to 150 pixels long, bottom left, with its length.
+void draw_scale_bar(cairo_t* cr, const Camera& cam) {
+  const double target = 150 / cam.scale;  // [m] the longest bar
+  const double decade = std::pow(10, std::floor(std::log10(target)));
+  double len = decade;
+  for (const double m : {2.0, 5.0, 10.0})
+    if (m * decade <= target) len = m * decade;
+  char text[32];
+  if (len >= 1)
+    std::snprintf(text, sizeof text, "%g m", len);
+  else if (len >= 0.01)
+    std::snprintf(text, sizeof text, "%g cm", len * 100);
+  else
+    std::snprintf(text, sizeof text, "%g mm", len * 1000);
+  const double px = len * cam.scale, x = 16, y = cam.height - 18;
+  set_colour(cr, kText);
+  cairo_set_line_width(cr, 2);
+  cairo_move_to(cr, x, y - 5);
+  cairo_line_to(cr, x, y);
+  cairo_line_to(cr, x + px, y);
+  cairo_line_to(cr, x + px, y - 5);
+  cairo_stroke(cr);
+  cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, 12);
+  cairo_move_to(cr, x + px + 6, y + 4);
+  cairo_show_text(cr, text);
+}
+
 void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::State* s) {
   if (hud.show) {
     std::vector<std::string> top;
@@ -208,9 +326,11 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
     } else {
       top.push_back(hud.title);
     }
-    if (hud.stats) top.insert(top.end(), hud.lines.begin(), hud.lines.end());
     draw_text_box(cr, 10, 10, 14, top);
+    // The overlay down the left side, clear of the ladder that the view centres.
+    if (hud.stats) draw_text_box(cr, 10, 40, 12, hud.lines);
   }
+  if (hud.scale_bar) draw_scale_bar(cr, cam);
   if (!hud.banner.empty()) {
     cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_BOLD);
     cairo_set_font_size(cr, 20);
@@ -222,6 +342,13 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
 
 }  // namespace
 
+Vec3 Camera::to_view(Vec3 w) const { return Rotation(yaw, pitch).apply({w.x - cx, w.y - cy, w.z}); }
+
+Point Camera::to_world(Point s) const {
+  const Point w = on_plane(Rotation(yaw, pitch), (s.x - 0.5 * width) / scale, -(s.y - 0.5 * height) / scale);
+  return {cx + w.x, cy + w.y};
+}
+
 void Camera::zoom_about(Point s, double factor) {
   const Point w = to_world(s);
   scale *= factor;
@@ -230,7 +357,31 @@ void Camera::zoom_about(Point s, double factor) {
   cy += w.y - after.y;
 }
 
+void Camera::orbit(double dyaw, double dpitch) {
+  yaw = std::clamp(yaw + dyaw, -kMaxAngle, kMaxAngle);
+  pitch = std::clamp(pitch + dpitch, -kMaxAngle, kMaxAngle);
+}
+
+void Camera::pan(Point a, Point b) {
+  const Point wa = to_world(a), wb = to_world(b);
+  cx -= wb.x - wa.x;
+  cy -= wb.y - wa.y;
+}
+
 Rgb face_colour(int block) { return block % 2 == 0 ? kFaceEven : kFaceOdd; }
+Rgb side_colour(int block) { return block % 2 == 0 ? kSideEven : kSideOdd; }
+
+double depth_of(const client::SceneInfo& info) {
+  const std::string key = "ladder.depth=";
+  const std::size_t at = info.options.starts_with(key) ? 0 : info.options.find("\n" + key);
+  if (at != std::string::npos) {
+    const char* text = info.options.c_str() + at + (at == 0 ? 0 : 1) + key.size();
+    char* end = nullptr;
+    const double d = std::strtod(text, &end);
+    if (end != text && std::isfinite(d) && d > 0) return d;
+  }
+  return kDefaultDepth;
+}
 
 std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose) {
   const double hw = 0.5 * info.thickness, hl = 0.5 * info.length;
@@ -262,34 +413,97 @@ int block_at(const client::SceneInfo& info, const client::State& state, Point wo
   return found;
 }
 
-Camera fit(const client::SceneInfo& info, const client::State& state, int width, int height, int max_blocks) {
+int tapes_on(const client::State& state, int block, int sign) {
+  const std::size_t n = std::min(state.blocks.size(), state.hinges.size());
+  for (const int k : {block, block + 1}) {
+    if (k < 1 || static_cast<std::size_t>(k) >= n) continue;
+    const client::Hinge& h = state.hinges[static_cast<std::size_t>(k)];
+    if (h.status != ladder_msg_BROKEN && ((h.corner & 2) ? -1 : 1) == sign) return k;
+  }
+  return -1;
+}
+
+std::vector<double> tape_centres(int hinge, int block) {
+  if (hinge == block + 1) return {-0.32, 0.32};  // the hinge below: the upper block of its pair
+  return {0.0};
+}
+
+Pick pick(const Camera& cam, const client::SceneInfo& info, const client::State& state, Point s) {
+  // The ray o + t u, u toward the viewer: the nearest box is the one it leaves last.
+  const Rotation r(cam.yaw, cam.pitch);
+  const double vx = (s.x - 0.5 * cam.width) / cam.scale, vy = -(s.y - 0.5 * cam.height) / cam.scale;
+  const Vec3 o0 = r.inverse({vx, vy, 0}), u = r.inverse({0, 0, 1});
+  const Vec3 o{cam.cx + o0.x, cam.cy + o0.y, o0.z};
+  const double half[3] = {0.5 * info.thickness, 0.5 * info.length, 0.5 * depth_of(info)};
+  Pick best;
+  double best_t = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < state.blocks.size(); ++i) {
+    const client::Pose& p = state.blocks[i];
+    const Point lo = rotate(-p.theta, {o.x - p.x, o.y - p.y}), lu = rotate(-p.theta, {u.x, u.y});
+    const double origin[3] = {lo.x, lo.y, o.z}, dir[3] = {lu.x, lu.y, u.z};
+    double t0 = -std::numeric_limits<double>::infinity(), t1 = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3 && t0 <= t1; ++a) {
+      if (std::abs(dir[a]) < 1e-12) {
+        if (std::abs(origin[a]) > half[a]) t0 = std::numeric_limits<double>::infinity();
+        continue;
+      }
+      double ta = (-half[a] - origin[a]) / dir[a], tb = (half[a] - origin[a]) / dir[a];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+    }
+    if (t0 > t1 || t1 <= best_t) continue;
+    best_t = t1;
+    const double mid = 0.5 * (t0 + t1);  // inside the box: a point of the block's rectangle
+    best = {static_cast<int>(i), {o.x + mid * u.x, o.y + mid * u.y}};
+  }
+  return best;
+}
+
+Vec3 hand_centre(const client::SceneInfo& info, const client::Pose& top) {
+  return {top.x, top.y, 0.5 * depth_of(info) + 0.15 * depth_of(info)};
+}
+
+Camera fit(const client::SceneInfo& info, const client::State& state, int width, int height, int max_blocks,
+           double yaw, double pitch) {
   Camera cam;
   cam.width = width;
   cam.height = height;
-  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x, hi_x = -lo_x, hi_y = -lo_x;
-  const Point d = depth_offset(info);
+  cam.yaw = yaw;
+  cam.pitch = pitch;
+  cam.cx = cam.cy = 0;
   const std::size_t n = std::min(state.blocks.size(), static_cast<std::size_t>(std::max(1, max_blocks)));
-  for (std::size_t i = 0; i < n; ++i)
-    for (const Point& p : outline(info, state.blocks[i]))
-      for (const Point& q : {p, Point{p.x + d.x, p.y + d.y}}) {
-        lo_x = std::min(lo_x, q.x);
-        hi_x = std::max(hi_x, q.x);
-        lo_y = std::min(lo_y, q.y);
-        hi_y = std::max(hi_y, q.y);
-      }
   if (n == 0) return cam;
+  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x, hi_x = -lo_x, hi_y = -lo_x;
+  const Camera at_origin = cam;
+  const View v(at_origin, info);
+  const auto extend = [&](Vec3 w) {
+    const Vec3 p = at_origin.to_view(w);
+    lo_x = std::min(lo_x, p.x);
+    hi_x = std::max(hi_x, p.x);
+    lo_y = std::min(lo_y, p.y);
+    hi_y = std::max(hi_y, p.y);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Box b = v.block(state.blocks[i]);
+    for (int c = 0; c < 8; ++c) extend(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1));
+  }
   // 10 % margin on every side; never so close that a block is bigger than the image.
   const double span_x = std::max(hi_x - lo_x, info.length), span_y = std::max(hi_y - lo_y, info.length);
   cam.scale = 0.8 * std::min(width / span_x, height / span_y);
-  cam.cx = 0.5 * (lo_x + hi_x);
-  cam.cy = 0.5 * (lo_y + hi_y);
+  // The target: the point of z = 0 that the middle of those bounds is in front of.
+  const Point w = on_plane(v.rot, 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y));
+  cam.cx = w.x;
+  cam.cy = w.y;
   return cam;
 }
 
 void draw_empty(cairo_t* cr, const Camera& camera, const Hud& hud) {
   set_colour(cr, kBackground);
   cairo_paint(cr);
-  draw_hud(cr, camera, hud, nullptr);
+  Hud h = hud;
+  h.scale_bar = false;
+  draw_hud(cr, camera, h, nullptr);
 }
 
 int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const client::State& state,
@@ -298,35 +512,23 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
   cairo_paint(cr);
   const View v(camera, info);
   int drawn = 0;
+  std::vector<char> shown(state.blocks.size());
+  for (std::size_t i = 0; i < state.blocks.size(); ++i) shown[i] = v.visible(state.blocks[i]);
   if (v.length_px < 3) {
     // Level of detail: blocks of a few pixels are a line.
     draw_chain(cr, v, state.blocks);
-    for (const client::Pose& p : state.blocks) drawn += v.visible(p);
+    drawn = static_cast<int>(std::count(shown.begin(), shown.end(), 1));
   } else {
-    std::vector<char> shown(state.blocks.size());
-    for (std::size_t i = 0; i < state.blocks.size(); ++i) shown[i] = v.visible(state.blocks[i]);
-    // Depth first, all of it, so that no block's sides cover another's front face.
-    if (v.length_px >= 6) {
-      for (std::size_t i = 0; i < state.blocks.size(); ++i)
-        if (shown[i]) draw_depth(cr, v, screen_outline(v, state.blocks[i]));
-      set_colour(cr, kDepth);
-      cairo_fill(cr);
-    }
-    // Front faces, one colour per parity (a path per colour keeps it to two fills).
-    for (int parity = 0; parity < 2; ++parity) {
-      for (std::size_t i = parity; i < state.blocks.size(); i += 2) {
-        if (!shown[i]) continue;
-        const std::array<Point, 4> o = screen_outline(v, state.blocks[i]);
-        polygon(cr, o.data(), 4);
-        ++drawn;
-      }
-      set_colour(cr, face_colour(parity));
-      cairo_fill(cr);
-    }
-    if (v.length_px >= 12) {
-      draw_ribbons(cr, v, state, shown);
-      draw_hinges(cr, v, state, shown);
-    }
+    // Back to front (painter's order): blocks are disjoint boxes, so the order of their centres' depths will do.
+    std::vector<std::pair<double, int>> order;
+    for (std::size_t i = 0; i < state.blocks.size(); ++i)
+      if (shown[i]) order.emplace_back(v.view_depth({state.blocks[i].x, state.blocks[i].y, 0}), static_cast<int>(i));
+    std::sort(order.begin(), order.end());
+    for (const auto& [depth, i] : order) draw_block(cr, v, state, i, v.length_px >= 12);
+    drawn = static_cast<int>(order.size());
+    if (info.top == "held" && !state.blocks.empty() && shown[0]) draw_hand(cr, v, state.blocks[0]);
+    if (v.length_px >= 12) draw_hinges(cr, v, state, shown);
+    if (hud.numbers && v.length_px >= 12) draw_numbers(cr, v, state, shown);
   }
   draw_grips(cr, v, state);
   draw_hud(cr, camera, hud, &state);

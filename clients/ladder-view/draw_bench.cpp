@@ -1,11 +1,13 @@
-// Frame time of the drawing module on a 100 000-block ladder: a window's worth of it (what the viewer shows by
-// default), the view far down the ladder, and the whole ladder at once (drawn as a line, the level of detail for
-// blocks of a few pixels). `ladder-view-bench` prints the figures.
+// Frame time of the drawing module on a hanging ladder of 6, 1000 and 100 000 blocks, 1280x800 pixels: the window's
+// default view (the top 40 blocks in 3-D, with the hand, tapes, hinges, numbers and scale bar), the same seen from
+// the side, the view far down the ladder, and the whole ladder at once (its blocks a few pixels or less: boxes
+// without tapes, then one line). `ladder-view-bench` prints the figures (docs/viewer.md).
 #include "draw.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <map>
 
 namespace {
 
@@ -18,6 +20,7 @@ struct Ladder {
     info.blocks = static_cast<std::uint32_t>(n);
     info.length = 0.064;
     info.thickness = 0.013;
+    info.top = "held";
     const double tilt = std::atan(0.013 / 0.064);
     for (int i = 0; i < n; ++i) {
       state.blocks.push_back({i % 2 ? 0.004 : 0.0, -0.066 * i, i % 2 ? tilt : -tilt});
@@ -26,33 +29,45 @@ struct Ladder {
   }
 };
 
+const Ladder& ladder(int n) {
+  static std::map<int, Ladder> made;
+  return made.try_emplace(n, n).first->second;
+}
+
 void frame(benchmark::State& bm, const view::Camera& cam, const Ladder& l) {
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, cam.width, cam.height);
   cairo_t* cr = cairo_create(surface);
+  view::Hud hud;
+  hud.numbers = true;
   int drawn = 0;
-  for (auto _ : bm) drawn = view::draw(cr, cam, l.info, l.state, view::Hud{});
+  for (auto _ : bm) drawn = view::draw(cr, cam, l.info, l.state, hud);
   bm.counters["blocks_drawn"] = drawn;
   cairo_destroy(cr);
   cairo_surface_destroy(surface);
 }
 
-const Ladder& big() {
-  static const Ladder l(100000);
-  return l;
+void BM_Default(benchmark::State& bm) {
+  const Ladder& l = ladder(static_cast<int>(bm.range(0)));
+  frame(bm, view::fit(l.info, l.state, 1280, 800), l);
 }
-
-void BM_Top(benchmark::State& bm) { frame(bm, view::fit(big().info, big().state, 1280, 800), big()); }
+void BM_Side(benchmark::State& bm) {
+  const Ladder& l = ladder(static_cast<int>(bm.range(0)));
+  frame(bm, view::fit(l.info, l.state, 1280, 800, 40, 0, 0), l);
+}
 void BM_FarDown(benchmark::State& bm) {
-  view::Camera cam = view::fit(big().info, big().state, 1280, 800);
-  cam.cy = -0.066 * 70000;
-  frame(bm, cam, big());
+  const Ladder& l = ladder(static_cast<int>(bm.range(0)));
+  view::Camera cam = view::fit(l.info, l.state, 1280, 800);
+  cam.cy = -0.066 * 0.7 * static_cast<double>(bm.range(0));
+  frame(bm, cam, l);
 }
 void BM_Whole(benchmark::State& bm) {
-  frame(bm, view::fit(big().info, big().state, 1280, 800, 100000), big());
+  const Ladder& l = ladder(static_cast<int>(bm.range(0)));
+  frame(bm, view::fit(l.info, l.state, 1280, 800, static_cast<int>(bm.range(0))), l);
 }
-BENCHMARK(BM_Top)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_FarDown)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_Whole)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Default)->Arg(6)->Arg(1000)->Arg(100000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Side)->Arg(6)->Arg(1000)->Arg(100000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FarDown)->Arg(1000)->Arg(100000)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Whole)->Arg(6)->Arg(1000)->Arg(100000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

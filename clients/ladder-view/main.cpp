@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <optional>
 
@@ -20,12 +21,18 @@ std::string parse_size(const std::string& text, int& w, int& h) {
   return {};
 }
 
-// "X,Y,SCALE" -> a camera centred on (X, Y) m at SCALE px/m.
+// "X,Y,SCALE[,YAW,PITCH]" -> a camera centred on (X, Y) m at SCALE px/m, turned by YAW and PITCH degrees (the 3-D
+// view's by default; 0,0 is the side view).
 std::string parse_view(const std::string& text, std::optional<ladder::view::Camera>& view) {
   ladder::view::Camera c;
+  double yaw = ladder::view::kDefaultYaw * 180 / M_PI, pitch = ladder::view::kDefaultPitch * 180 / M_PI;
   char rest = 0;
-  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &c.cx, &c.cy, &c.scale, &rest) != 3 || !(c.scale > 0))
-    return "'" + text + "' is not a view like 0.01,-0.2,1500 (centre X,Y in m, then px per m)";
+  const int n = std::sscanf(text.c_str(), "%lf,%lf,%lf,%lf,%lf%c", &c.cx, &c.cy, &c.scale, &yaw, &pitch, &rest);
+  if ((n != 3 && n != 5) || !(c.scale > 0) || !(std::abs(yaw) <= 80) || !(std::abs(pitch) <= 80))
+    return "'" + text + "' is not a view like 0.01,-0.2,1500 or 0.01,-0.2,1500,-50,12 (centre X,Y in m, px per m, "
+                        "then yaw and pitch in degrees, each within +-80)";
+  c.yaw = yaw * M_PI / 180;
+  c.pitch = pitch * M_PI / 180;
   view = c;
   return {};
 }
@@ -44,7 +51,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");
   app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
-  auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (Ctrl-C stops)");
+  auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (q or Ctrl-C stops; t tips)");
   png->excludes(ascii);
   app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(CLI::PositiveNumber);
   app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
@@ -55,7 +62,11 @@ int main(int argc, char** argv) {
   std::string security;
   app.add_option("--security", security,
                  "DDS Security: this viewer's identity folder DIR/NAME of scripts/make-pki (docs/security.md)");
-  app.add_option("--view", view, "X,Y,SCALE: centre the view on (X, Y) m at SCALE px/m instead of framing the ladder");
+  app.add_option("--view", view, "X,Y,SCALE[,YAW,PITCH]: centre the view on (X, Y) m at SCALE px/m, turned by YAW "
+                                 "and PITCH degrees (default -50,12; 0,0 is the side view), instead of framing the "
+                                 "ladder");
+  app.add_flag("--side", o.side, "the side view (the model's own plane, as the paper draws it) instead of 3-D");
+  app.add_flag("--numbers", o.numbers, "each block's number beside it (the window: key n)");
   try {
     app.parse(argc, argv);
     if (o.ascii) o.width = 100, o.height = 40;

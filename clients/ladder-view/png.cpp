@@ -1,16 +1,26 @@
 // --png FILE [--at SIMTIME]: one snapshot of the first state at or after SIMTIME (the latest state without --at).
 #include "app.hpp"
 
+#include <cstdio>
 #include <iostream>
+#include <string>
 
 namespace ladder::view {
+
+namespace {
+std::string fixed3(double t) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", t);
+  return buf;
+}
+}  // namespace
 
 int run_png(const Options& o) {
   client::Client c(o.domain, o.sim_id);
   if (!found_server(o, c)) return kNoServer;
   // Wait for the state as long as the server keeps talking (a far --at may take a while).
   Feed feed(c);
-  bool told = false;
+  bool told = false, first = true;
   client::State state;
   client::SceneInfo info;
   while (true) {
@@ -19,8 +29,13 @@ int run_png(const Options& o) {
     if (s && (!o.at || s->sim_time >= *o.at)) {
       state = *s;  // this state and its scene, whatever comes while the Stats are awaited below
       info = *feed.info();
+      // The first state seen is already later than --at: the server was past it when the viewer came.
+      if (o.at && first && s->sim_time > *o.at)
+        std::cerr << "ladder-view: ladderd '" << o.sim_id << "' was already at t = " << fixed3(s->sim_time)
+                  << " s, past --at " << *o.at << " s; the snapshot is of t = " << fixed3(s->sim_time) << " s\n";
       break;
     }
+    first = first && !s;
     if (feed.undrawable() > o.timeout) {
       std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
                 << " s: " << feed.why_undrawable() << "\n";
@@ -44,6 +59,7 @@ int run_png(const Options& o) {
   Hud hud;
   hud.title = info.replay ? o.sim_id + " (REPLAY)" : o.sim_id;
   if (feed.stats()) hud.real_time_factor = feed.stats()->real_time_factor;
+  hud.numbers = o.numbers;
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);
   cairo_t* cr = cairo_create(surface);
   draw(cr, cam, info, state, hud);
@@ -55,12 +71,9 @@ int run_png(const Options& o) {
     return kFailed;
   }
   char buf[320];
-  std::snprintf(buf, sizeof buf,
-                "ladder-view: wrote %s (%dx%d px): t = %.6f s, seq %llu, %zu blocks; view centre %.9g,%.9g m, "
-                "%.9g px/m\n",
-                o.png.c_str(), o.width, o.height, state.sim_time, static_cast<unsigned long long>(state.seq),
-                state.blocks.size(), cam.cx, cam.cy, cam.scale);
-  std::cout << buf;
+  std::snprintf(buf, sizeof buf, "ladder-view: wrote %s (%dx%d px): t = %.6f s, seq %llu, %zu blocks; ", o.png.c_str(),
+                o.width, o.height, state.sim_time, static_cast<unsigned long long>(state.seq), state.blocks.size());
+  std::cout << buf << camera_text(cam) << "\n";
   return kOk;
 }
 

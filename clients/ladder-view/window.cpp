@@ -2,6 +2,8 @@
 // picture changes. The DDS client is polled, never waited on, so the window stays responsive while the server is
 // away; commands are sent at once and their answers picked up in later frames.
 #include "app.hpp"
+#include "directory.hpp"
+#include "plot.hpp"
 
 #include <SDL2/SDL.h>
 
@@ -9,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <memory>
 
 namespace ladder::view {
 
@@ -20,12 +23,13 @@ namespace cmd = client::cmd;
 constexpr double kPokeImpulse = 0.005;  // [N s] ladderctl's default poke
 constexpr double kDragSlop = 4;         // [px] a press that moves farther is a drag, not a click
 constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at most ~33 a second
-constexpr auto kAnswerTimeout = std::chrono::seconds(5);
 
+// The overlay's keys, in short lines: the overlay stands down the left side of the picture.
 const std::vector<std::string> kHelp = {
-    "click: poke  drag a block: grab and move it  drag elsewhere / right drag: pan  wheel: zoom",
-    "t tip  space pause/resume  s step (S: 100)  r reset  f follow the ripple  0 fit  arrows pan  +/- zoom",
-    "o overlay  q quit"};
+    "click a block: poke it",      "drag a block: grab and move it", "drag elsewhere, middle drag: pan",
+    "right drag: orbit  wheel: zoom", "t tip  space pause/resume",    "s step (S: 100)  r reset",
+    "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "p plots  Tab next ladder",
+    "arrows pan  +/- zoom",        "o overlay  q quit"};
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -67,6 +71,7 @@ class Screen {
     SDL_RenderPresent(renderer_);
   }
   int width() const { return width_; }
+  void title(const std::string& t) { SDL_SetWindowTitle(window_, t.c_str()); }
   int height() const { return height_; }
 
  private:
@@ -88,14 +93,15 @@ class Screen {
 
 class Viewer {
  public:
-  Viewer(const Options& o, Screen& screen) : o_(o), screen_(screen), client_(o.domain, o.sim_id), feed_(client_) {
+  Viewer(const Options& o, Screen& screen)
+      : o_(o), screen_(screen), sim_id_(o.sim_id), link_(std::make_unique<Link>(o.domain, o.sim_id)), side_(o.side) {
     camera_.width = screen.width();
     camera_.height = screen.height();
   }
 
   void run() {
     while (!quit_) {
-      if (feed_.update(client::Millis(4))) {
+      if (link_->feed.update(client::Millis(4))) {
         on_state();
         dirty_ = true;
       }
@@ -112,21 +118,20 @@ class Viewer {
   }
 
  private:
-  enum class Mode { None, Pan, Press, Grab };
+  enum class Mode { None, Pan, Orbit, Press, Grab };
 
   // A new state: fit the view to a new scene, and note where the ripple is.
   void on_state() {
-    if (!feed_.state()) return;  // Feed::update() says so only with a state and its SceneInfo; kept safe here too
-    const client::State& s = *feed_.state();
-    const client::SceneInfo& info = *feed_.info();
+    if (!link_->feed.state()) return;  // Feed::update() says so only with a state and its SceneInfo; kept safe here too
+    const client::State& s = *link_->feed.state();
+    const client::SceneInfo& info = *link_->feed.info();
     if (!fitted_ || info.blocks != scene_blocks_ || info.scene_name != scene_name_) {
       camera_ = camera_for(o_, info, s, screen_.width(), screen_.height());
       fitted_ = true;
       scene_blocks_ = info.blocks;
       scene_name_ = info.scene_name;
-      std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; view centre %.9g,%.9g m, %.9g px/m\n",
-                  info.scene_name.c_str(), info.blocks, camera_.width, camera_.height, camera_.cx, camera_.cy,
-                  camera_.scale);
+      std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; %s\n", info.scene_name.c_str(),
+                  info.blocks, camera_.width, camera_.height, camera_text(camera_).c_str());
       std::fflush(stdout);
       flips_.clear();
     }
@@ -140,17 +145,53 @@ class Viewer {
     }
     flips_.resize(s.hinges.size());
     for (std::size_t k = 0; k < s.hinges.size(); ++k) flips_[k] = s.hinges[k].flips;
+    history_.add(s.generation, s.sim_time, s.energy, flips_);
   }
 
   // Says on standard output when the server goes quiet and when it is back (the picture says it too).
   void note_silence() {
-    const bool quiet = feed_.quiet() > 3;
+    const bool quiet = link_->feed.quiet() > 3;
     if (quiet == silent_) return;
     silent_ = quiet;
-    std::printf("ladder-view: ladderd '%s' %s\n", o_.sim_id.c_str(),
+    std::printf("ladder-view: ladderd '%s' %s\n", sim_id_.c_str(),
                 quiet ? "is not answering; waiting for it" : "answers again");
     std::fflush(stdout);
     dirty_ = true;
+  }
+
+  // The next ladder on the domain (by sim id, round), found by DDS discovery (1.5 s, the window waits): shown from
+  // now on, framed anew.
+  void switch_ladder() {
+    const client::Directory d = client::discover(o_.domain, 1.5);
+    std::string next;
+    for (const client::LadderEntry& l : d.ladders)
+      if (l.sim_id > sim_id_) {
+        next = l.sim_id;
+        break;
+      }
+    if (next.empty() && !d.ladders.empty()) next = d.ladders.front().sim_id;
+    if (next.empty() || next == sim_id_) {
+      std::printf("ladder-view: no other ladder on DDS domain %d than '%s'\n", o_.domain, sim_id_.c_str());
+      std::fflush(stdout);
+      return;
+    }
+    if (mode_ == Mode::Grab) send(cmd::release(block_), "release block " + std::to_string(block_));
+    mode_ = Mode::None;
+    sim_id_ = next;
+    link_ = std::make_unique<Link>(o_.domain, sim_id_);
+    fitted_ = false;
+    history_ = History{};
+    screen_.title("ladder-view: " + sim_id_);
+    std::printf("ladder-view: switched to sim id '%s' (%zu ladders on DDS domain %d)\n", sim_id_.c_str(),
+                d.ladders.size(), o_.domain);
+    std::fflush(stdout);
+  }
+
+  // Frames the ladder again, seen from the side or in 3-D (key v).
+  void refit(const client::State& s) {
+    const client::SceneInfo& info = *link_->feed.info();
+    camera_ = side_ ? fit(info, s, screen_.width(), screen_.height(), 40, 0, 0)
+                    : fit(info, s, screen_.width(), screen_.height());
   }
 
   void step_follow() {
@@ -165,33 +206,38 @@ class Viewer {
   void paint() {
     const auto t0 = Clock::now();
     Hud hud;
-    hud.title = feed_.info() && feed_.info()->replay ? o_.sim_id + " (REPLAY)" : o_.sim_id;
+    hud.title = link_->feed.info() && link_->feed.info()->replay ? sim_id_ + " (REPLAY)" : sim_id_;
     hud.stats = true;
-    if (feed_.stats()) hud.real_time_factor = feed_.stats()->real_time_factor;
-    const client::State* s = feed_.state();
+    hud.numbers = numbers_;
+    if (link_->feed.stats()) hud.real_time_factor = link_->feed.stats()->real_time_factor;
+    const client::State* s = link_->feed.state();
     if (!s) {
-      hud.banner = "waiting for ladderd '" + o_.sim_id + "' on DDS domain " + std::to_string(o_.domain) + " ...";
-    } else if (feed_.quiet() > 3) {
+      hud.banner = "waiting for ladderd '" + sim_id_ + "' on DDS domain " + std::to_string(o_.domain) + " ...";
+    } else if (link_->feed.quiet() > 3) {
       char buf[128];
-      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", feed_.quiet());
+      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", link_->feed.quiet());
       hud.banner = buf;
     }
     if (overlay_) {
-      if (s) hud.lines = stats_lines(*feed_.info(), feed_.stats());
+      if (s) hud.lines = stats_lines(*link_->feed.info(), link_->feed.stats());
       char buf[128];
       std::snprintf(buf, sizeof buf, "draw %.1f ms, %d blocks on screen%s", draw_ms_, drawn_,
                     follow_ ? ", following the ripple" : "");
       hud.lines.emplace_back(buf);
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      if (!answer_.empty()) hud.lines.push_back(answer_);
+      if (!link_->outbox.last().empty()) hud.lines.push_back(link_->outbox.last());
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
-      hud.lines.push_back(answer_.empty() ? "o: stats and keys" : answer_);
+      hud.lines.push_back(link_->outbox.last().empty() ? "o: stats and keys" : link_->outbox.last());
     }
     if (s)
-      drawn_ = draw(screen_.cairo(), camera_, *feed_.info(), *s, hud);
+      drawn_ = draw(screen_.cairo(), camera_, *link_->feed.info(), *s, hud);
     else
       draw_empty(screen_.cairo(), camera_, hud);
+    // The plots lower right, clear of the ladder the view centres (the overlay is on the left).
+    if (plots_)
+      draw_plots(screen_.cairo(), history_, 0.64 * screen_.width(), 0.45 * screen_.height(),
+                 0.35 * screen_.width(), 0.5 * screen_.height());
     screen_.present();
     draw_ms_ = 1e3 * seconds(Clock::now() - t0);
     drawn_at_ = Clock::now();
@@ -199,28 +245,13 @@ class Viewer {
   }
 
   // --- commands ---
-  void send(const ladder_msg_Command& c, const std::string& what) {
-    if (!client_.wait_for_server(client::Millis(0))) {
-      answer_ = what + ": not sent, no server";
-      return;
-    }
-    pending_.push_back({client_.send(c), what, Clock::now()});
-  }
+  void send(const ladder_msg_Command& c, const std::string& what) { link_->outbox.send(c, what); }
 
   void take_answers() {
-    for (auto it = pending_.begin(); it != pending_.end();) {
-      const auto a = client_.wait_ack(it->id, client::Millis(0));
-      if (!a && Clock::now() - it->sent < kAnswerTimeout) {
-        ++it;
-        continue;
-      }
-      char buf[96];
-      if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
-      answer_ = it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer");
-      std::printf("ladder-view: %s\n", answer_.c_str());
+    for (const std::string& a : link_->outbox.take()) {
+      std::printf("ladder-view: %s\n", a.c_str());
       std::fflush(stdout);
       dirty_ = true;
-      it = pending_.erase(it);
     }
   }
 
@@ -272,7 +303,7 @@ class Viewer {
   void on_key(const SDL_Keysym& k) {
     const bool shift = (k.mod & KMOD_SHIFT) != 0;
     const double pan = 0.1 * std::min(camera_.width, camera_.height) / camera_.scale;
-    const client::State* s = feed_.state();
+    const client::State* s = link_->feed.state();
     switch (k.sym) {
       case SDLK_q:
       case SDLK_ESCAPE: quit_ = true; break;
@@ -286,10 +317,17 @@ class Viewer {
       case SDLK_s: send(cmd::step(shift ? 100 : 1), shift ? "step 100" : "step 1"); break;
       case SDLK_r: send(cmd::reset(), "reset"); break;
       case SDLK_f: follow_ = !follow_; break;
+      case SDLK_n: numbers_ = !numbers_; break;
+      case SDLK_p: plots_ = !plots_; break;
+      case SDLK_TAB: switch_ladder(); break;
+      case SDLK_v:
+        side_ = !side_;
+        if (s) refit(*s);
+        break;
       case SDLK_o: overlay_ = !overlay_; break;
       case SDLK_0:
       case SDLK_HOME:
-        if (s) camera_ = fit(*feed_.info(), *s, screen_.width(), screen_.height());
+        if (s) refit(*s);
         follow_ = false;
         break;
       case SDLK_PLUS:
@@ -308,28 +346,41 @@ class Viewer {
 
   void on_press(const SDL_MouseButtonEvent& b) {
     press_ = {double(b.x), double(b.y)};
-    mode_ = Mode::Pan;
-    const client::State* s = feed_.state();
+    mode_ = b.button == SDL_BUTTON_RIGHT ? Mode::Orbit : Mode::Pan;
+    const client::State* s = link_->feed.state();
     if (b.button != SDL_BUTTON_LEFT || !s) return;
-    const Point w = camera_.to_world(press_);
-    block_ = block_at(*feed_.info(), *s, w);
+    // The block under the cursor in the picture as drawn: the ray through it, against every block's box.
+    const Pick p = pick(camera_, *link_->feed.info(), *s, press_);
+    block_ = p.block;
     if (block_ < 0) return;
     mode_ = Mode::Press;
-    grab_point_ = to_block_frame(s->blocks[block_], w);
-    press_world_ = w;
+    grab_point_ = to_block_frame(s->blocks[block_], p.world);
+    press_world_ = p.world;
+    // A drag moves the grabbed point as the plane z = 0 under the cursor moves.
+    const Point plane = camera_.to_world(press_);
+    drag_offset_ = {p.world.x - plane.x, p.world.y - plane.y};
+  }
+
+  Point drag_target(Point at) const {
+    const Point w = camera_.to_world(at);
+    return {w.x + drag_offset_.x, w.y + drag_offset_.y};
   }
 
   void on_motion(const SDL_MouseMotionEvent& m) {
     const Point at{double(m.x), double(m.y)};
-    if (const client::State* s = feed_.state()) {
-      const int h = block_at(*feed_.info(), *s, camera_.to_world(at));
+    if (const client::State* s = link_->feed.state()) {
+      const int h = pick(camera_, *link_->feed.info(), *s, at).block;
       if (h != hover_) dirty_ = overlay_;
       hover_ = h;
     }
-    if (mode_ == Mode::Pan) {
-      camera_.cx -= m.xrel / camera_.scale;
-      camera_.cy += m.yrel / camera_.scale;
-      follow_ = false;
+    if (mode_ == Mode::Pan || mode_ == Mode::Orbit) {
+      const Point from{at.x - m.xrel, at.y - m.yrel};
+      if (mode_ == Mode::Pan)
+        camera_.pan(from, at);
+      else
+        camera_.orbit(0.01 * m.xrel, 0.01 * m.yrel);
+      follow_ = mode_ == Mode::Orbit && follow_;
+      side_ = side_ && mode_ == Mode::Pan;
       dirty_ = true;
     } else if (mode_ == Mode::Press && std::hypot(at.x - press_.x, at.y - press_.y) > kDragSlop) {
       // Hold the block by the point that was pressed, pulled toward the cursor.
@@ -339,16 +390,16 @@ class Viewer {
       c.d = grab_point_.y;
       send(c, "grab block " + std::to_string(block_));
       mode_ = Mode::Grab;
-      drag_to_ = camera_.to_world(at);
+      drag_to_ = drag_target(at);
     } else if (mode_ == Mode::Grab) {
-      drag_to_ = camera_.to_world(at);
+      drag_to_ = drag_target(at);
     }
   }
 
   void on_release(const SDL_MouseButtonEvent&) {
     if (mode_ == Mode::Press) {
       // A click pokes the block at that point, away from the side it was clicked on.
-      const client::State* s = feed_.state();
+      const client::State* s = link_->feed.state();
       // (the ladder may have been replaced by a smaller one since the press: then the block is gone)
       const bool known = s && static_cast<std::size_t>(block_) < s->blocks.size();
       const double dir = known && press_world_.x > s->blocks[static_cast<std::size_t>(block_)].x ? -1 : 1;
@@ -362,31 +413,32 @@ class Viewer {
     mode_ = Mode::None;
   }
 
-  struct Pending {
-    std::uint64_t id;
-    std::string what;
-    Clock::time_point sent;
-  };
-
   const Options& o_;
   Screen& screen_;
-  client::Client client_;
-  Feed feed_;
+  // The connection to the ladder shown; replaced when the user switches to another ladder (key Tab).
+  struct Link {
+    client::Client client;
+    Feed feed;
+    Outbox outbox;
+    Link(int domain, const std::string& sim_id) : client(domain, sim_id), feed(client), outbox(client) {}
+  };
+  std::string sim_id_;
+  std::unique_ptr<Link> link_;
   Camera camera_;
   bool fitted_ = false, follow_ = false, overlay_ = false, dirty_ = true, quit_ = false, silent_ = false;
+  bool side_ = false, numbers_ = true, plots_ = false;  // keys v, n and p
+  History history_;  // what the plots show
   std::uint32_t scene_blocks_ = 0;
   std::string scene_name_;
   std::vector<std::uint32_t> flips_;
   std::optional<Point> ripple_;
-  std::vector<Pending> pending_;
-  std::string answer_;
   Clock::time_point drawn_at_{}, dragged_at_{};
   double draw_ms_ = 0;
   int drawn_ = 0, hover_ = -1;
   // The mouse: what a left press started, on which block, where.
   Mode mode_ = Mode::None;
   int block_ = -1;
-  Point press_, press_world_, grab_point_;
+  Point press_, press_world_, grab_point_, drag_offset_;
   std::optional<Point> drag_to_;
 };
 

@@ -1,10 +1,13 @@
 #include "commands.hpp"
 #include "transport/version.hpp"
 
+#include "list.hpp"
 #include "replay.hpp"
+#include "session_plot.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -189,7 +192,44 @@ void print_state(const client::State& s, bool json) {
               s.hinges.size() > 17 ? "..." : "");
 }
 
-int watch(Client& client, const std::string& what, bool json, double rate) {
+// The event kinds ladderd publishes (server/ladder/ladder.cpp, to_string(EventKind)).
+const std::vector<std::string> kEventKinds{"flip_flop", "lock", "unlock", "break", "join", "solver_warning"};
+
+// --kinds flip_flop,lock -> the kinds; every one must be a kind ladderd publishes.
+std::vector<std::string> event_kinds(const std::string& text) {
+  std::vector<std::string> kinds;
+  std::stringstream in(text);
+  for (std::string k; std::getline(in, k, ',');) {
+    if (std::find(kEventKinds.begin(), kEventKinds.end(), k) == kEventKinds.end()) {
+      std::string all;
+      for (const std::string& e : kEventKinds) all += (all.empty() ? "" : ", ") + e;
+      throw CLI::ValidationError("--kinds", "'" + k + "' is not an event kind (" + all + ")");
+    }
+    kinds.push_back(k);
+  }
+  return kinds;
+}
+
+struct WatchOptions {
+  std::string what;
+  bool json = false;
+  double rate = 10;
+  std::vector<std::string> kinds;  // events: only these (empty = all)
+};
+
+int watch(Client& client, const Connection& c, const WatchOptions& w) {
+  const bool json = w.json;
+  const std::string& what = w.what;
+  const double rate = w.rate;
+  if (what == "events" && !json) {
+    std::string kinds;
+    for (const std::string& k : w.kinds) kinds += (kinds.empty() ? "" : ", ") + k;
+    if (!kinds.empty()) kinds = " (only " + kinds + ")";
+    std::printf("events of sim id '%s' on DDS domain %d%s as they happen; hinge k joins blocks k-1 and k "
+                "(Ctrl-C stops):\n",
+                c.sim_id.c_str(), c.domain, kinds.c_str());
+    std::fflush(stdout);
+  }
   g_interrupted = false;
   struct sigaction sa {}, old {};
   sa.sa_handler = on_interrupt;
@@ -200,7 +240,9 @@ int watch(Client& client, const std::string& what, bool json, double rate) {
   while (!g_interrupted) {
     if (what == "events") {
       client.wait_state([](const client::State&) { return false; }, Millis(100));
-      for (const client::Event& e : client.take_events()) print_event(e, json);
+      for (const client::Event& e : client.take_events())
+        if (w.kinds.empty() || std::find(w.kinds.begin(), w.kinds.end(), e.kind) != w.kinds.end())
+          print_event(e, json);
     } else if (what == "stats") {
       const auto s = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(200));
       if (s && s->steps != seen_stats) {
@@ -270,10 +312,12 @@ using Standalone = std::function<int(const Connection&)>;
 struct Values {
   int index = 0;
   std::uint32_t count = 1;
-  std::string impulse = "0.005,0", at, force, to, pose, key, value, scene, what;
-  double duration = 0, stiffness = 0, rate = 10;
-  bool json = false;
+  std::string impulse = "0.005,0", at, force, to, pose, key, value, scene, kinds;
+  double duration = 0, stiffness = 0;
+  WatchOptions watch;
   ReplayOptions replay;
+  PlotOptions plot;
+  std::string plot_size;
 };
 
 void add_connection(CLI::App& app, Connection& c) {
@@ -397,11 +441,42 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   });
 
   auto* w = app.add_subcommand("watch", "print a live stream until Ctrl-C");
-  w->add_option("WHAT", v.what, "events, stats or state")->required()->check(CLI::IsMember({"events", "stats", "state"}));
-  w->add_flag("--json", v.json, "one JSON object per line");
-  w->add_option("--rate", v.rate, "most state lines per second in text (default 10; 0 = every state)");
+  w->add_option("WHAT", v.watch.what, "events, stats or state")
+      ->required()
+      ->check(CLI::IsMember({"events", "stats", "state"}));
+  w->add_flag("--json", v.watch.json, "one JSON object per line");
+  w->add_option("--rate", v.watch.rate, "most state lines per second in text (default 10; 0 = every state)");
+  w->add_option("--kinds", v.kinds, "with events: only these kinds, e.g. flip_flop,lock (flip_flop, lock, unlock, "
+                                    "break, join, solver_warning)");
   w->callback([&] {
-    action = [&v](Client& cl, const Connection&) { return watch(cl, v.what, v.json, v.rate); };
+    if (!v.kinds.empty() && v.watch.what != "events")
+      throw CLI::ValidationError("--kinds", "only watch events takes --kinds");
+    v.watch.kinds = event_kinds(v.kinds);
+    action = [&v](Client& cl, const Connection& k) { return watch(cl, k, v.watch); };
+  });
+
+  app.add_subcommand("list", "every ladderd on the domain: sim id, host, scene, blocks, real-time factor")
+      ->callback([&] { standalone = [](const Connection& c) { return list(c.domain, std::max(c.timeout, 1.5)); }; });
+
+  auto* p = app.add_subcommand("plot", "the ripple's front (hinge of each flip-flop against time) and the energy as "
+                                       "a PNG, from the running server or a recorded session");
+  p->add_option("PNG", v.plot.png, "the picture to write")->required();
+  p->add_option("--log", v.plot.log, "a recorded session (ladderd --record): all of its states, no server needed")
+      ->check(CLI::ExistingFile);
+  p->add_option("--for", v.plot.seconds, "the running server: watch its states this long [s] (default 10)")
+      ->check(CLI::PositiveNumber);
+  p->add_option("--size", v.plot_size, "WxH pixels (default 900x600)");
+  p->callback([&] {
+    if (!v.plot_size.empty()) {
+      char x = 0, rest = 0;
+      if (std::sscanf(v.plot_size.c_str(), "%d%c%d%c", &v.plot.width, &x, &v.plot.height, &rest) != 3 || x != 'x' ||
+          v.plot.width < 200 || v.plot.height < 150 || v.plot.width > 8192 || v.plot.height > 8192)
+        throw CLI::ValidationError("--size", "'" + v.plot_size + "' is not a size like 900x600 (200x150 to 8192x8192)");
+    }
+    if (!v.plot.log.empty())
+      standalone = [&v](const Connection&) { return plot_log(v.plot); };
+    else
+      action = [&v](Client& cl, const Connection&) { return plot_live(cl, v.plot); };
   });
 
   auto* r = app.add_subcommand("replay", "publish a recorded session (ladderd --record) as if live, for viewers");
@@ -419,12 +494,56 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   });
 }
 
+// Levenshtein distance with one row of the table (command names are short).
+std::size_t distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+// Where the first word of `args` that is neither an option nor an option's value is: the command, if any.
+std::optional<std::size_t> command_at(const std::vector<std::string>& args) {
+  static const std::vector<std::string> with_value{"--domain", "--sim-id", "--timeout", "--security"};
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (std::find(with_value.begin(), with_value.end(), args[i]) != with_value.end()) {
+      ++i;
+      continue;
+    }
+    if (!args[i].starts_with("-")) return i;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
+
+std::string unknown_command(const std::string& word) {
+  std::string best;
+  std::size_t best_d = 3;  // at most two edits away, and fewer than the word has letters
+  for (const std::string& n : command_names()) {
+    const std::size_t d = n.starts_with(word) ? 0 : distance(word, n);
+    if (d < best_d && d < word.size()) best = n, best_d = d;
+  }
+  std::string out = "unknown command '" + word + "'";
+  if (!best.empty()) out += "; did you mean '" + best + "'?";
+  out += "\ncommands:";
+  for (const std::string& n : command_names()) out += " " + n;
+  return out + "\n(each takes --help; ladderctl --help for the options)";
+}
 
 const std::vector<std::string>& command_names() {
   static const std::vector<std::string> names{"tip",  "poke",  "push", "grab",   "drag", "release",
                                               "break", "join", "pause", "resume", "step", "reset",
-                                              "set",  "load",  "status", "watch", "replay", "help", "quit"};
+                                              "set",  "load",  "status", "watch", "list", "plot", "replay", "help",
+                                              "quit"};
   return names;
 }
 
@@ -440,7 +559,16 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   declare(app, v, action, standalone);
   app.require_subcommand(interactive ? 1 : 0, 1);
   const Connection before = conn;
-  std::vector<std::string> reversed(args.rbegin(), args.rend());
+  std::vector<std::string> words = args;
+  if (const auto at = command_at(words)) {
+    const auto& names = command_names();
+    if (std::find(names.begin(), names.end(), words[*at]) == names.end()) {
+      std::cerr << (interactive ? "" : "ladderctl: ") << unknown_command(words[*at]) << "\n";
+      return kUsage;
+    }
+    if (words[*at] == "help") words[*at] = "--help";  // `ladderctl help`: the usage
+  }
+  std::vector<std::string> reversed(words.rbegin(), words.rend());
   try {
     app.parse(reversed);
   } catch (const CLI::ParseError& e) {

@@ -29,6 +29,9 @@ struct Connection {
 // The names of every subcommand, for help and completion.
 const std::vector<std::string>& command_names();
 
+// "unknown command 'tpi'; did you mean 'tip'?" and the list of commands (no did-you-mean when none is near).
+std::string unknown_command(const std::string& word);
+
 // Runs one command line (argv without the program name). `client` is reused if given (the prompt keeps one);
 // otherwise one is made and dropped; it is remade when --domain or --sim-id change it. Returns an Exit code.
 int run(const std::vector<std::string>& args, Connection& connection, std::unique_ptr<client::Client>& client,

@@ -44,8 +44,10 @@ const char* kHelp =
     "  set KEY VALUE                e.g. set damping.linear 0.5, set server.real_time_factor 0.25\n"
     "  load SCENE                   e.g. load double-ripple\n"
     "  status                       watch events|stats|state [--json]   (Ctrl-C ends a watch)\n"
+    "  list                         every ladderd on the domain (sim id, host, scene, blocks, real-time factor)\n"
+    "  plot PNG [--log FILE | --for S]   the ripple's front and the energy, from a log or the server\n"
     "  replay FILE [--speed X] [--from T] [--as ID]   a recorded session, published as if live\n"
-    "  help   quit\n";
+    "  help   quit                  (quit exits 0; Ctrl-D exits with the last command's status)\n";
 
 }  // namespace
 
@@ -64,7 +66,10 @@ int prompt(Connection& connection) {
     const std::vector<std::string> words = split_words(line);
     if (words.empty()) continue;
     add_history(line.c_str());
-    if (words[0] == "quit" || words[0] == "exit") break;
+    if (words[0] == "quit" || words[0] == "exit") {
+      last = kAccepted;  // leaving on purpose: whatever an earlier command's answer was
+      break;
+    }
     if (words[0] == "help") {
       std::cout << kHelp;
       continue;

@@ -66,6 +66,8 @@ constexpr std::array kKeys{
            .help = "number of blocks; without it, the length of ladder.masses"},
     KeyDef{.name = "ladder.length", .kind = Kind::Number, .range = above(0), .help = "block length [m]"},
     KeyDef{.name = "ladder.thickness", .kind = Kind::Number, .range = above(0), .help = "block thickness [m]"},
+    KeyDef{.name = "ladder.depth", .kind = Kind::Number, .range = above(0),
+           .help = "block depth into the page, drawn by the viewer only (the model is 2-D) [m]"},
     KeyDef{.name = "ladder.mass", .kind = Kind::Number, .range = above(0), .help = "mass of each block [kg]"},
     KeyDef{.name = "ladder.masses", .kind = Kind::Numbers, .range = above(0),
            .help = "mass of each block in turn, one per block [kg]"},
@@ -808,6 +810,7 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
   r.get("scene.name", s.name);
   r.get("scene.description", s.description);
   read_ladder(r, s.ladder);
+  r.get("ladder.depth", s.depth);
   read_options(r, s);
   s.timeline = read_timeline(root, source_name, s.ladder.blocks);
   s.text = std::string(toml_text);
@@ -869,6 +872,7 @@ std::string live_settings(const Scene& s) {
   line("damping.linear", format_number(o.linear_damping));
   line("damping.angular", format_number(o.angular_damping));
   line("damping.hinge", format_number(o.hinge_friction));
+  line("ladder.depth", format_number(s.depth));  // not live: carried here for the viewer, which draws it
   return out;
 }
 

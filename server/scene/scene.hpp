@@ -29,6 +29,7 @@ struct Scene {
   core::Options options;
   double dt = 0.001;                       // [s]
   int substeps = 1;                        // steps of dt / substeps per step of dt
+  double depth = 0.045;                    // [m] a block's depth into the page: only drawn (ladder.depth)
   std::vector<TimedCommand> timeline;      // sorted by t; entries with equal t keep their file order
   // What the scene was made from, so that a session log can make it again (parse_scene(text, source, overrides),
   // then drop the timeline if timeline_dropped).
@@ -76,7 +77,8 @@ bool is_live_key(std::string_view key);
 // SceneError ("key=value: why") for a bad value, an unknown key, or a key that is not live (the ladder's shape
 // and the initial state are fixed once built: change them with --set and reset).
 Scene with_live_setting(const Scene& scene, const std::string& setting);
-// Every live setting's current value, one "key=value" line each.
+// Every live setting's current value, one "key=value" line each; then ladder.depth, which is not live but is
+// published with them for the viewer (SceneInfo's options), the only program that uses it.
 std::string live_settings(const Scene& scene);
 
 // One line per key, "key  type  description (range)", for --help.

@@ -6,7 +6,9 @@
 #include "client.hpp"
 #include "draw.hpp"
 #include "netns.hpp"
+#include "plot.hpp"
 #include "process.hpp"
+#include "pty.hpp"
 #include "transport/dds.hpp"
 #include "transport/topics.hpp"
 
@@ -18,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <regex>
 #include <thread>
@@ -50,7 +53,11 @@ bool eventually(const std::function<bool()>& done, Millis timeout) {
 
 // Colours: a block's face must be its own parity's face colour (Cairo paints a polygon's inside exactly).
 int distance(Rgb a, Rgb b) { return std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b); }
-bool is_face(Rgb c) { return distance(c, view::kFaceEven) < 12 || distance(c, view::kFaceOdd) < 12; }
+bool is_face(Rgb c) {
+  for (const Rgb wood : {view::kFaceEven, view::kFaceOdd, view::kSideEven, view::kSideOdd})
+    if (distance(c, wood) < 12) return true;
+  return false;
+}
 
 // An RGB picture: a PNG (Cairo reads it) or an X screen (XWD, as Xvfb -fbdir keeps it).
 struct Image {
@@ -120,31 +127,68 @@ Image read_xwd(const std::string& path) {
   return img;
 }
 
-// "view centre X,Y m, S px/m" in ladder-view's output -> its camera.
+// "view centre X,Y m, S px/m, yaw A deg, pitch B deg" in ladder-view's output -> its camera.
 std::optional<Camera> camera_in(const std::string& output, int width, int height) {
   std::smatch m;
-  if (!std::regex_search(output, m, std::regex(R"(view centre ([-0-9.e+]+),([-0-9.e+]+) m, ([0-9.e+]+) px/m)")))
+  if (!std::regex_search(output, m, std::regex(R"(view centre ([-0-9.e+]+),([-0-9.e+]+) m, ([0-9.e+]+) px/m, )"
+                                               R"(yaw ([-0-9.e+]+) deg, pitch ([-0-9.e+]+) deg)")))
     return std::nullopt;
   Camera c;
   c.cx = std::stod(m[1]);
   c.cy = std::stod(m[2]);
   c.scale = std::stod(m[3]);
+  c.yaw = std::stod(m[4]) * M_PI / 180;
+  c.pitch = std::stod(m[5]) * M_PI / 180;
   c.width = width;
   c.height = height;
   return c;
 }
 
-// Every block's centre, projected, shows that block's face colour; `offset` is the picture's place on the image.
-void expect_blocks_at_centres(const Image& img, const Camera& cam, const client::State& s, Point offset = {}) {
+// Which wide face of a block faces the camera: +1 its +x face, -1 its -x face (the model's geometry, draw.hpp).
+int facing_side(const Camera& cam, const client::Pose& p) {
+  const view::Vec3 n = cam.to_view({cam.cx + std::cos(p.theta), cam.cy + std::sin(p.theta), 0});
+  return n.z > 0 ? 1 : -1;
+}
+
+// A point on block i's wide face toward the camera, at `y` along its length and `z` across its depth (fractions:
+// 0 is the middle), projected.
+Point on_wide_face(const Camera& cam, const client::SceneInfo& info, const client::Pose& p, double y, double z) {
+  const double x = 0.5 * info.thickness * facing_side(cam, p);
+  const double c = std::cos(p.theta), s = std::sin(p.theta), ly = y * info.length;
+  return cam.project({p.x + c * x - s * ly, p.y + s * x + c * ly, z * view::depth_of(info)});
+}
+
+// Every block's wide face is where the state puts it: a point of it clear of its tapes (z = -0.16 of the depth lies
+// between the central tape and an outer one) and of the hand (block 0: low on the face) shows that block's face
+// colour. `offset` is the picture's place on the image.
+void expect_blocks_at_centres(const Image& img, const Camera& cam, const client::SceneInfo& info,
+                              const client::State& s, Point offset = {}) {
   ASSERT_GT(img.width, 0) << "no picture";
   for (std::size_t i = 0; i < s.blocks.size(); ++i) {
-    const Point p = cam.to_screen({s.blocks[i].x, s.blocks[i].y});
+    const Point p = on_wide_face(cam, info, s.blocks[i], i == 0 ? -0.35 : 0, -0.16);
     const Rgb c = img.at({p.x + offset.x, p.y + offset.y}), want = view::face_colour(static_cast<int>(i));
     EXPECT_LT(distance(c, want), 12) << "block " << i << " at pixel (" << p.x + offset.x << ", " << p.y + offset.y
                                      << "): rgb " << c.r << "," << c.g << "," << c.b << ", want " << want.r << ","
                                      << want.g << "," << want.b;
   }
 }
+
+// The tapes each block shows on its face toward the camera: 'o' two outer ones, 'c' one central one, '-' none,
+// read off the picture at the middle of the depth and at an outer tape's place.
+std::string tapes_seen(const Image& img, const Camera& cam, const client::SceneInfo& info, const client::State& s,
+                       Point offset = {}) {
+  std::string out;
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+    const double y = i == 0 ? -0.35 : 0;
+    const Point mid = on_wide_face(cam, info, s.blocks[i], y, 0), outer = on_wide_face(cam, info, s.blocks[i], y, 0.32);
+    const bool central = distance(img.at({mid.x + offset.x, mid.y + offset.y}), view::kRibbon) < 12;
+    const bool outers = distance(img.at({outer.x + offset.x, outer.y + offset.y}), view::kRibbon) < 12;
+    out += central ? (outers ? '?' : 'c') : (outers ? 'o' : '-');
+  }
+  return out;
+}
+
+bool is_hand(Rgb c) { return c.b > c.r + 40 && c.b > c.g + 20; }
 
 // ---------------------------------------------------------------------------------------------------------------
 // The drawing module alone.
@@ -169,21 +213,71 @@ client::State zigzag(int n) {
   return s;
 }
 
-TEST(Draw, FacesAtProjectedCentresHitTestsAndAscii) {
+Image render(const Camera& cam, const client::SceneInfo& info, const client::State& s, const std::string& name,
+             int* drawn = nullptr) {
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, cam.width, cam.height);
+  cairo_t* cr = cairo_create(surface);
+  const int n = view::draw(cr, cam, info, s, view::Hud{});
+  if (drawn) *drawn = n;
+  cairo_destroy(cr);
+  const std::string path = kBin + "/tests/" + name + ".png";
+  cairo_surface_write_to_png(surface, path.c_str());
+  cairo_surface_destroy(surface);
+  return read_png(path);
+}
+
+// The 3-D view of a known state: each block's wide face where the state puts it, the tapes each face carries (two
+// outer ones on the even blocks, a central one on the odd ones, as the hanging toy shows them), the hand on the
+// held top block; a click (pick) finds the block under it. Then block 2 turned over, as a flip-flop leaves it: its
+// other face, with the other tapes, is the one seen.
+TEST(Draw, BlocksRibbonsAndTheHandWhereTheStateHasThem) {
+  client::SceneInfo info = classic_info(6);
+  info.top = "held";
+  info.options = "sim.dt=0.001\nladder.depth=0.04\n";
+  EXPECT_EQ(view::depth_of(info), 0.04);
+  client::State s = zigzag(6);
+  const Camera cam = view::fit(info, s, 400, 600);
+  EXPECT_FALSE(cam.side());
+  int drawn = 0;
+  const Image img = render(cam, info, s, "Draw3d", &drawn);
+  EXPECT_EQ(drawn, 6);
+  expect_blocks_at_centres(img, cam, info, s);
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) EXPECT_EQ(facing_side(cam, s.blocks[i]), 1) << i;
+  EXPECT_EQ(tapes_seen(img, cam, info, s), "ocococ");
+  EXPECT_TRUE(is_hand(img.at(cam.project(view::hand_centre(info, s.blocks[0])))));
+  EXPECT_EQ(distance(img.at({399, 0}), view::kBackground), 0);
+  // The scale bar, bottom left: its line 18 px above the bottom, nothing just above it.
+  EXPECT_LT(distance(img.at({30, 600 - 18}), view::kText), 40);
+  EXPECT_EQ(distance(img.at({30, 600 - 30}), view::kBackground), 0);
+  // Picking: the block under each face point, and a point of it inside its rectangle; nothing on the background.
+  for (int i = 0; i < 6; ++i) {
+    const view::Pick p = view::pick(cam, info, s, on_wide_face(cam, info, s.blocks[i], 0.2, -0.16));
+    EXPECT_EQ(p.block, i);
+    EXPECT_EQ(view::block_at(info, s, p.world), i);
+  }
+  EXPECT_EQ(view::pick(cam, info, s, {5, 300}).block, -1);
+
+  // Block 2 turned over about its centre: its -x face (hinge 2's central tape) now faces the camera.
+  s.blocks[2].theta += M_PI;
+  const Image flipped = render(cam, info, s, "Draw3d-flipped");
+  EXPECT_EQ(facing_side(cam, s.blocks[2]), -1);
+  EXPECT_EQ(tapes_seen(flipped, cam, info, s), "occcoc");
+  // A broken hinge has no tapes: hinge 1's (the outer ones on block 0, the central one on block 1) are gone.
+  s.hinges[1].status = ladder_msg_BROKEN;
+  EXPECT_EQ(tapes_seen(render(cam, info, s, "Draw3d-broken"), cam, info, s), "--ccoc");
+}
+
+// The side view (the model's plane): each block's narrow side at its centre, the locked hinge's red dot on its
+// particle; and the text rendering, every block numbered.
+TEST(Draw, SideViewAndAscii) {
   const client::SceneInfo info = classic_info(6);
   const client::State s = zigzag(6);
-  const Camera cam = view::fit(info, s, 300, 500);
-  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, 300, 500);
-  cairo_t* cr = cairo_create(surface);
-  EXPECT_EQ(view::draw(cr, cam, info, s, view::Hud{}), 6);
-  cairo_destroy(cr);
-  const std::string path = kBin + "/tests/Draw.png";
-  ASSERT_EQ(cairo_surface_write_to_png(surface, path.c_str()), CAIRO_STATUS_SUCCESS);
-  cairo_surface_destroy(surface);
-  const Image img = read_png(path);
-  expect_blocks_at_centres(img, cam, s);
-  EXPECT_EQ(distance(img.at({299, 499}), view::kBackground), 0);
-  // The locked hinge 3 is marked: its red dot sits on the hinge particle.
+  const Camera cam = view::fit(info, s, 300, 500, 40, 0, 0);
+  EXPECT_TRUE(cam.side());
+  const Image img = render(cam, info, s, "DrawSide");
+  for (std::size_t i = 0; i < s.blocks.size(); ++i)
+    EXPECT_LT(distance(img.at(cam.to_screen({s.blocks[i].x, s.blocks[i].y})), view::side_colour(int(i))), 12) << i;
+  EXPECT_EQ(distance(img.at({299, 0}), view::kBackground), 0);
   const Point h = cam.to_screen(view::hinge_particle(info, 3, s.hinges[3].corner, s.blocks[3]));
   EXPECT_LT(distance(img.at(h), view::kLocked), 12);
   for (int i = 0; i < 6; ++i) EXPECT_EQ(view::block_at(info, s, {s.blocks[i].x, s.blocks[i].y}), i);
@@ -209,6 +303,34 @@ TEST(Draw, OnlyWhatIsOnScreenOfAHundredThousandBlocks) {
   EXPECT_LT(far, 60);
   cairo_destroy(cr);
   cairo_surface_destroy(surface);
+}
+
+// The plots' history: a flip-flop where a hinge's count goes up, at that state's time; a reset starts again. The
+// picture has each flip-flop's dot and the energy's line where the axes put them.
+TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
+  view::History h;
+  h.add(1, 0.0, -1.0, {0, 0, 0});
+  h.add(1, 1.0, -0.5, {0, 1, 0});
+  h.add(1, 2.0, -0.8, {0, 1, 2});  // hinge 2 twice in one state: two flip-flops
+  ASSERT_EQ(h.flips().size(), 3u);
+  EXPECT_EQ(h.flips()[0].x, 1.0);
+  EXPECT_EQ(h.flips()[0].y, 1.0);
+  EXPECT_EQ(h.flips()[2].x, 2.0);
+  EXPECT_EQ(h.flips()[2].y, 2.0);
+  EXPECT_EQ(h.energy().size(), 3u);
+  EXPECT_EQ(h.hinges(), 2);
+  const std::string path = kBin + "/tests/Plot.png";
+  ASSERT_EQ(view::write_plots_png(h, path, 600, 400), "");
+  const Image img = read_png(path);
+  const auto axes = view::plot_axes(h, 0, 0, 600, 400);
+  EXPECT_EQ(distance(img.at(axes[0].at(1.0, 1.0)), view::kFlipDot), 0);
+  EXPECT_EQ(distance(img.at(axes[0].at(2.0, 2.0)), view::kFlipDot), 0);
+  EXPECT_NE(distance(img.at(axes[0].at(1.0, 2.0)), view::kFlipDot), 0);  // no flip-flop of hinge 2 at t = 1
+  EXPECT_LT(distance(img.at(axes[1].at(1.0, -0.5)), view::kEnergyLine), 60);
+  h.add(1, 0.5, -1.0, {0, 0, 0});  // back in time: a reset
+  EXPECT_TRUE(h.flips().empty());
+  EXPECT_EQ(h.energy().size(), 1u);
+  EXPECT_EQ(view::write_plots_png(h, "/nonexistent/dir/p.png", 600, 400).empty(), false);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -249,15 +371,22 @@ class View : public ::testing::Test {
 };
 
 // Before and after a tip (the server paused for each, so that the state drawn is the state the test holds): every
-// block is where the state puts it, and where a block was before and is no longer, the picture changed.
-TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
+// block is where the state puts it, the hand holds the top block, and the ripple has turned every block over, so the
+// face toward the camera is each block's other one, with the other tapes: outer and central swap all down the
+// ladder (the paper's Figure 3); the top block's new face has none (its hinge there is hinge 0, the hand's hold), nor
+// has the bottom block's (no hinge below it).
+TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockAndItsTapesWhereTheStateHasThem) {
   const client::State before = pause();
+  const client::SceneInfo info = *client_->scene_info();
+  ASSERT_EQ(info.top, "held");
   const Result a = viewer("--png " + out_ + "-before.png --size 500x700");
   ASSERT_EQ(a.code, 0) << a.output;
   const auto cam = camera_in(a.output, 500, 700);
   ASSERT_TRUE(cam) << a.output;
   const Image img0 = read_png(out_ + "-before.png");
-  expect_blocks_at_centres(img0, *cam, before);
+  expect_blocks_at_centres(img0, *cam, info, before);
+  EXPECT_EQ(tapes_seen(img0, *cam, info, before), "ocococ");
+  EXPECT_TRUE(is_hand(img0.at(cam->project(view::hand_centre(info, before.blocks[0])))));
 
   ASSERT_TRUE(client_->call(cmd::resume(), kAnswer).accepted);
   ASSERT_TRUE(client_->call(cmd::tip(), kAnswer).accepted);
@@ -265,47 +394,134 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockWhereTheStateHasIt) {
   const auto rippled = client_->wait_state(
       [](const client::State& s) { return s.hinges.size() == 6 && s.hinges[5].flips >= 1; }, Millis(30000));
   ASSERT_TRUE(rippled) << "no flip-flop at hinge 5";
-  ASSERT_TRUE(client_->wait_state([&](const client::State& s) { return s.sim_time > rippled->sim_time + 0.5; },
-                                  Millis(30000)));
+  // Every block has turned over (the bottom one last, and it swings on for a while).
+  const auto turned = [](const client::State& st) {
+    return std::all_of(st.blocks.begin(), st.blocks.end(),
+                       [](const client::Pose& p) { return std::cos(p.theta) < -0.7; });
+  };
+  ASSERT_TRUE(client_->wait_state(turned, Millis(30000))) << "the blocks did not all turn over";
   const client::State after = pause();
   char at[64];
   std::snprintf(at, sizeof at, "%.17g", after.sim_time);
-  char view[128];
-  std::snprintf(view, sizeof view, "%.17g,%.17g,%.17g", cam->cx, cam->cy, cam->scale);
+  char view[160];
+  std::snprintf(view, sizeof view, "%.17g,%.17g,%.17g,%.17g,%.17g", cam->cx, cam->cy, cam->scale,
+                cam->yaw * 180 / M_PI, cam->pitch * 180 / M_PI);
   const Result b = viewer("--png " + out_ + "-after.png --size 500x700 --at " + at + " --view " + view);
   ASSERT_EQ(b.code, 0) << b.output;
   const Image img1 = read_png(out_ + "-after.png");
-  expect_blocks_at_centres(img1, *cam, after);
-
-  // Where a block's centre was and no block is now (2 px clear of every block), the face is gone.
-  const client::SceneInfo info = *client_->scene_info();
-  int vacated = 0;
-  for (const auto& p : before.blocks) {
-    bool clear = true;
-    for (double dx : {-2.0, 0.0, 2.0})
-      for (double dy : {-2.0, 0.0, 2.0}) clear = clear && view::block_at(info, after, {p.x + dx / cam->scale,
-                                                                                           p.y + dy / cam->scale}) < 0;
-    if (!clear) continue;
-    ++vacated;
-    const Point q = cam->to_screen({p.x, p.y});
-    EXPECT_TRUE(is_face(img0.at(q)));
-    EXPECT_FALSE(is_face(img1.at(q))) << "the picture after the tip still shows a face at (" << q.x << ", " << q.y
-                                      << ")";
-  }
-  EXPECT_GE(vacated, 3) << "the blocks hardly moved";
+  expect_blocks_at_centres(img1, *cam, info, after);
+  for (std::size_t i = 0; i < 6; ++i)
+    EXPECT_EQ(facing_side(*cam, after.blocks[i]), -facing_side(*cam, before.blocks[i])) << "block " << i;
+  EXPECT_EQ(tapes_seen(img1, *cam, info, after), "-ococ-");
+  EXPECT_TRUE(is_hand(img1.at(cam->project(view::hand_centre(info, after.blocks[0])))));
 }
 
 TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
   const Result r = viewer("--ascii --frames 1 --size 60x40");
   ASSERT_EQ(r.code, 0) << r.output;
-  const std::size_t picture = r.output.find('\n');  // the first line is the heading
-  ASSERT_NE(picture, std::string::npos);
-  EXPECT_NE(r.output.find(sim_id_ + "  t = "), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("6 blocks"), std::string::npos) << r.output;
+  // The heading: what is shown, then (no terminal to type in) how to tip it from elsewhere.
+  const std::size_t picture = r.output.find("tip\n");
+  ASSERT_NE(picture, std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  6 blocks  sim id '" + sim_id_ + "'\n"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("from another terminal: ladderctl --sim-id " + sim_id_ + " --domain " +
+                          std::to_string(domain_) + " tip\n"),
+            std::string::npos)
+      << r.output;
   const std::string art = r.output.substr(picture);
   for (char d = '0'; d <= '5'; ++d) EXPECT_NE(art.find(d), std::string::npos) << "no block " << d << "\n" << art;
   EXPECT_EQ(art.find('6'), std::string::npos) << art;
   EXPECT_GT(std::count(art.begin(), art.end(), '#'), 40) << art;
+}
+
+// The terminal view as a user at an 80x24 terminal sees it (a pty): the heading names the keys, each block's number
+// and every hinge's state are on screen; t tips (the server accepts it), space pauses, q ends it with status 0 and
+// the cursor shown again.
+TEST_F(View, TerminalAt80x24NamesTheKeysTipsPausesAndQuits) {
+  Pty term({kViewer, "--ascii", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "30"}, 80, 24);
+  ASSERT_TRUE(term.started());
+  ASSERT_TRUE(term.read_until("keys: t tip  space pause/resume  s step  r reset  q quit", 30)) << term.screen();
+  // (cut at the terminal's width: the test's sim id is long)
+  ASSERT_TRUE(term.read_until("from another terminal: ladderctl --sim-id " + sim_id_.substr(0, 30), 5))
+      << term.screen();
+  ASSERT_TRUE(term.read_until("hinge  state   flips", 5)) << term.screen();
+  for (int k = 1; k <= 5; ++k)
+    EXPECT_TRUE(term.read_until("    " + std::to_string(k) + "  hinged      0", 5)) << "hinge " << k << "\n"
+                                                                                  << term.screen();
+  // Every frame fits the terminal: no line longer than 80 characters between the cursor moves.
+  const std::string& screen = term.screen();
+  std::size_t longest = 0;
+  for (std::size_t at = 0, nl; (nl = screen.find('\n', at)) != std::string::npos; at = nl + 1) {
+    std::string line = std::regex_replace(screen.substr(at, nl - at), std::regex("\x1b\\[[0-9;?]*[A-Za-z]"), "");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    longest = std::max(longest, line.size());
+  }
+  EXPECT_LE(longest, 80u) << screen;
+  for (char d = '0'; d <= '5'; ++d) EXPECT_NE(screen.find(d), std::string::npos);
+
+  term.type("t");
+  EXPECT_TRUE(term.read_until("tip: accepted at t = ", 20)) << term.screen();
+  EXPECT_TRUE(eventually([&] { return server_->log().find("tip 1 from ") != std::string::npos; }, kAnswer))
+      << server_->log();
+  const std::size_t before_pause = term.screen().size();
+  term.type(" ");
+  EXPECT_TRUE(term.read_until("pause: accepted at t = ", 20, before_pause)) << term.screen();
+  EXPECT_TRUE(term.read_until("PAUSED", 10, before_pause)) << term.screen();
+  EXPECT_TRUE(client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer).has_value());
+
+  term.type("q");
+  const auto status = term.wait_exit(20);
+  ASSERT_TRUE(status.has_value()) << "q did not end the view\n" << term.screen();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << *status;
+  // The cursor, hidden while drawing, is shown again after the last frame.
+  const std::string& all = term.screen();
+  ASSERT_NE(all.rfind("\x1b[?25l"), std::string::npos);
+  EXPECT_GT(all.rfind("\x1b[?25h"), all.rfind("\x1b[?25l")) << all.substr(all.size() > 200 ? all.size() - 200 : 0);
+}
+
+// A hang-up (a closed SSH session), SIGTERM or Ctrl-C ends the terminal view with status 0 and the cursor shown.
+TEST_F(View, TerminalRestoresTheCursorOnEverySignal) {
+  for (const int sig : {SIGHUP, SIGTERM, SIGINT}) {
+    Pty term({kViewer, "--ascii", "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "30"}, 80,
+             24);
+    ASSERT_TRUE(term.read_until("keys: t tip", 30)) << term.screen();
+    kill(term.pid(), sig);
+    const auto status = term.wait_exit(20);
+    ASSERT_TRUE(status.has_value()) << strsignal(sig) << " did not end the view";
+    EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << strsignal(sig) << ": status " << *status;
+    const std::string& all = term.screen();
+    EXPECT_GT(all.rfind("\x1b[?25h"), all.rfind("\x1b[?25l")) << strsignal(sig);
+  }
+}
+
+// --at a time the server has already passed: the snapshot is of the state it has, and the viewer says so.
+TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
+  ASSERT_TRUE(client_->wait_state([](const client::State& st) { return st.sim_time > 0.2; }, Millis(30000)));
+  const Result r = viewer("--png " + out_ + ".png --at 0.1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(ladderd '[^']+' was already at t = ([0-9.]+) s, past --at )"
+                                                         R"(0\.1 s; the snapshot is of t = ([0-9.]+) s)")))
+      << r.output;
+  EXPECT_GT(std::stod(m[1]), 0.2);
+  EXPECT_EQ(m[1], m[2]);
+  // Asked for a time still ahead (the server paused just before it, so that it stays ahead however slowly the viewer
+  // starts), it waits, says why, and once resumed draws it, with nothing of the kind said.
+  const client::State paused = pause();
+  char at[32];
+  std::snprintf(at, sizeof at, "%.3f", paused.sim_time + 0.05);
+  std::remove((out_ + "-ahead.log").c_str());  // a log of an earlier run would answer the wait below at once
+  Process ahead({kViewer, "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "30", "--png",
+                 out_ + "-ahead.png", "--at", at},
+                out_ + "-ahead.log");
+  ASSERT_TRUE(eventually([&] { return ahead.log().find("the simulation is paused at t = ") != std::string::npos; },
+                         kStart))
+      << ahead.log();
+  ASSERT_TRUE(client_->call(cmd::resume(), kAnswer).accepted);
+  const auto status = ahead.wait_exit(kStart);
+  ASSERT_TRUE(status.has_value()) << ahead.log();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << ahead.log();
+  EXPECT_NE(ahead.log().find("ladder-view: wrote "), std::string::npos) << ahead.log();
+  EXPECT_EQ(ahead.log().find("already"), std::string::npos) << ahead.log();
 }
 
 TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
@@ -338,7 +554,7 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
       std::this_thread::sleep_for(Millis(5));
     }
   });
-  for (const std::string mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
+  for (const std::string& mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
     const auto t0 = std::chrono::steady_clock::now();
     const Result r = shell(kViewer + where() + " --timeout 2 " + mode);
     const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -398,6 +614,20 @@ class Xvfb {
   std::optional<Process> process_;
 };
 
+// Where the window of this title is on the screen (xdotool, once it is mapped), or nothing within kStart.
+std::optional<Point> window_origin(const Xvfb& x, const std::string& title) {
+  Result geometry;
+  const bool found = eventually(
+      [&] {
+        geometry = shell("DISPLAY=" + x.display() + " xdotool search --name '" + title + "' getwindowgeometry --shell");
+        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
+      },
+      kStart);
+  std::smatch m;
+  if (!found || !std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) return std::nullopt;
+  return Point{std::stod(m[1]), std::stod(m[2])};
+}
+
 TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   const client::State s = pause();  // a still picture
   Xvfb x(out_ + "-x");
@@ -410,23 +640,16 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
       << viewer.log();
   // Where the window is on the screen.
   const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
-  Result geometry;
-  ASSERT_TRUE(eventually(
-      [&] {
-        geometry = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowgeometry --shell");
-        return geometry.code == 0 && geometry.output.find("X=") != std::string::npos;
-      },
-      kStart))
-      << geometry.output;
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(geometry.output, m, std::regex(R"(X=(-?\d+)\s+Y=(-?\d+))"))) << geometry.output;
-  const Point origin{std::stod(m[1]), std::stod(m[2])};
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << "no window 'ladder-view: " << sim_id_ << "' on the screen; the viewer's log:\n" << viewer.log();
+  const Point origin = *where;
 
-  // The screenshot shows each block at its projected centre (once the window has painted).
+  // The screenshot shows each block's wide face where the state has it (once the window has painted), and its tapes.
+  const client::SceneInfo info = *client_->scene_info();
   const auto shows_ladder = [&] {
     const Image img = x.screen();
     for (std::size_t i = 0; i < s.blocks.size(); ++i) {
-      const Point p = cam->to_screen({s.blocks[i].x, s.blocks[i].y});
+      const Point p = on_wide_face(*cam, info, s.blocks[i], i == 0 ? -0.35 : 0, -0.16);
       if (distance(img.at({p.x + origin.x, p.y + origin.y}), view::face_colour(int(i))) >= 12) return false;
     }
     return true;
@@ -438,10 +661,13 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
            << "-screen.png); the viewer " << (exited ? "has exited, status " + std::to_string(*exited) : "runs")
            << "; its log:\n" << viewer.log() << "\nXvfb's log:\n" << x.log();
   }
-  expect_blocks_at_centres(x.screen(), *cam, s, origin);
+  expect_blocks_at_centres(x.screen(), *cam, info, s, origin);
+  EXPECT_EQ(tapes_seen(x.screen(), *cam, info, s, origin), "ocococ");
+  EXPECT_FALSE(cam->side());
 
-  // A click on block 3 pokes it: the viewer reports the server's acceptance, the server counts it and logs it.
-  const Point p = cam->to_screen({s.blocks[3].x, s.blocks[3].y});
+  // A click on block 3's face in the 3-D view pokes it: the viewer reports the server's acceptance, the server
+  // counts it and logs it.
+  const Point p = on_wide_face(*cam, info, s.blocks[3], 0.1, -0.16);
   const Result click = shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
                              std::to_string(int(p.y + origin.y)) + " click 1");
   ASSERT_EQ(click.code, 0) << click.output;
@@ -469,6 +695,63 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   ASSERT_TRUE(eventually([&] { return count("answers again") == 1; }, kStart)) << viewer.log();
   ASSERT_EQ(shell(xdo + "click 1").code, 0);  // the pointer is still on block 3, which hangs where it did
   EXPECT_TRUE(eventually([&] { return count("poke block 3: accepted") == 2; }, kStart)) << viewer.log();
+  viewer.signal(SIGTERM);
+  EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
+// Two ladders on the domain: Tab in the window switches to the other one (found by DDS discovery), which is then
+// framed and shown, and a click pokes that ladder's block.
+TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
+  // Logs of an earlier run would answer the waits below at once.
+  for (const std::string& log : {log_path_ + ".second", out_ + "-viewer.log"}) std::remove(log.c_str());
+  Process second({kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_ + "-2",
+                  "--set", "ladder.blocks=3", "--log-level", "debug"},
+                 log_path_ + ".second");
+  Client other(domain_, sim_id_ + "-2", "test");
+  ASSERT_TRUE(other.wait_for_server(kStart)) << second.log();
+  const client::Ack paused = other.call(cmd::pause(), kAnswer);
+  ASSERT_TRUE(paused.accepted);
+  const auto s2 = other.wait_state([&](const client::State& st) { return st.commands_applied >= paused.command_seq; },
+                                   kAnswer);
+  ASSERT_TRUE(s2 && s2->paused);
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process viewer({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_, "--size", "640x600"},
+                 out_ + "-viewer.log");
+  ASSERT_TRUE(eventually([&] { return viewer.log().find("(6 blocks)") != std::string::npos; }, kStart))
+      << viewer.log();
+  const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << "no window 'ladder-view: " << sim_id_ << "' on the screen; the viewer's log:\n" << viewer.log();
+  const Point origin = *where;
+  // Keys go to the window under the pointer (no window manager).
+  const std::string corner = std::to_string(int(origin.x) + 5) + " " + std::to_string(int(origin.y) + 5);
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + corner + " key Tab").code, 0);
+  ASSERT_TRUE(eventually([&] { return viewer.log().find("switched to sim id '" + sim_id_ + "-2' (2 ladders") !=
+                                      std::string::npos; },
+                         kStart))
+      << viewer.log();
+  const std::size_t at = viewer.log().find("switched to");
+  std::optional<Camera> cam;
+  ASSERT_TRUE(eventually([&] { return (cam = camera_in(viewer.log().substr(at), 640, 600)).has_value(); }, kStart))
+      << viewer.log();
+  EXPECT_NE(viewer.log().find("(3 blocks)", at), std::string::npos) << viewer.log();
+  const client::SceneInfo info = *other.scene_info();
+  const Point p = on_wide_face(*cam, info, s2->blocks[2], 0.1, -0.16);
+  // The picture shows the other ladder: its block 2's face where its state has it; a click there pokes it.
+  const auto shows_it = [&] {
+    return distance(x.screen().at({p.x + origin.x, p.y + origin.y}), view::face_colour(2)) < 12;
+  };
+  ASSERT_TRUE(eventually(shows_it, kStart)) << viewer.log();
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(p.x + origin.x)) + " " +
+                  std::to_string(int(p.y + origin.y)) + " click 1").code,
+            0);
+  EXPECT_TRUE(eventually([&] { return viewer.log().find("poke block 2: accepted") != std::string::npos; }, kStart))
+      << viewer.log();
+  EXPECT_TRUE(eventually([&] { return second.log().find("poke 1 from ") != std::string::npos; }, kAnswer))
+      << second.log();
+  EXPECT_EQ(server_->log().find("poke 1 from "), std::string::npos) << "the first ladder was poked";
   viewer.signal(SIGTERM);
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
 }
@@ -562,7 +845,7 @@ TEST_F(View, RemoteViewerInAnotherNetworkNamespace) {
   ASSERT_EQ(a.code, 0) << a.output << "\nremote server:\n" << remote.log();
   const auto cam = camera_in(a.output, 500, 700);
   ASSERT_TRUE(cam) << a.output;
-  expect_blocks_at_centres(read_png(out_ + "-remote.png"), *cam, rest);
+  expect_blocks_at_centres(read_png(out_ + "-remote.png"), *cam, *client_->scene_info(), rest);
 
   const Result tip = shell(where_b + kBin + "/clients/ladderctl tip" + where() + " --timeout 30");
   ASSERT_EQ(tip.code, 0) << tip.output;

@@ -152,6 +152,15 @@ TEST(Values, EmptySceneKeepsTheDefaults) {
   EXPECT_TRUE(s.timeline.empty());
 }
 
+// ladder.depth: only drawn (the viewer reads it from the SceneInfo's settings), checked like every length.
+TEST(Values, DepthIsReadCheckedAndPublishedWithTheSettings) {
+  EXPECT_EQ(parse_scene("", "<string>").depth, 0.045);
+  const Scene s = parse_scene("[ladder]\ndepth = 0.03\n", "<string>");
+  EXPECT_EQ(s.depth, 0.03);
+  EXPECT_NE(live_settings(s).find("\nladder.depth=0.03\n"), std::string::npos) << live_settings(s);
+  expect_error("[ladder]\ndepth = 0\n", "<string>:2:9: ", {"ladder.depth must be > 0 (got 0)"});
+}
+
 TEST(Values, EveryKeyIsRead) {
   const Scene s = parse_scene(R"(
 [scene]
@@ -554,7 +563,7 @@ std::vector<std::string> help_keys() {
 
 TEST(Help, OneLinePerKey) {
   const auto keys = help_keys();
-  EXPECT_EQ(keys.size(), 39u);
+  EXPECT_EQ(keys.size(), 40u);
   EXPECT_EQ(keys.front(), "scene.name");
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);

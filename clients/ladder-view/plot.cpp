@@ -1,0 +1,129 @@
+#include "plot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace ladder::view {
+
+namespace {
+
+// Every other point dropped, the last one kept.
+void halve(std::vector<Point>& v) {
+  std::vector<Point> kept;
+  kept.reserve(v.size() / 2 + 1);
+  for (std::size_t i = 0; i < v.size(); i += 2) kept.push_back(v[i]);
+  if (v.size() % 2 == 0) kept.push_back(v.back());
+  v.swap(kept);
+}
+
+void text(cairo_t* cr, double x, double y, const std::string& s) {
+  cairo_move_to(cr, x, y);
+  cairo_show_text(cr, s.c_str());
+}
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+// A frame, its range written at its corners, and its title.
+void frame(cairo_t* cr, const Axes& a, const std::string& title, const std::string& unit) {
+  cairo_set_source_rgb(cr, 0.45, 0.47, 0.52);
+  cairo_set_line_width(cr, 1);
+  cairo_rectangle(cr, a.x + 0.5, a.y + 0.5, a.w, a.h);
+  cairo_stroke(cr);
+  cairo_set_source_rgb(cr, 0.85, 0.86, 0.9);
+  cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, 11);
+  text(cr, a.x, a.y - 5, title);
+  text(cr, a.x - 4 - 7 * static_cast<double>(number(a.v1).size()), a.y + 10, number(a.v1));
+  text(cr, a.x - 4 - 7 * static_cast<double>(number(a.v0).size()), a.y + a.h, number(a.v0));
+  text(cr, a.x, a.y + a.h + 13, number(a.t0) + " s");
+  text(cr, a.x + a.w - 50, a.y + a.h + 13, number(a.t1) + " s");
+  text(cr, a.x + a.w - 7 * static_cast<double>(unit.size()), a.y - 5, unit);
+}
+
+}  // namespace
+
+void History::add(std::uint32_t generation, double t, double energy, const std::vector<std::uint32_t>& flips) {
+  if (generation != generation_ || t < last_t_) {
+    energy_.clear();
+    flips_.clear();
+    last_.clear();
+    generation_ = generation;
+  }
+  last_t_ = t;
+  if (!std::isfinite(energy)) return;
+  energy_.push_back({t, energy});
+  if (last_.size() == flips.size())
+    for (std::size_t k = 1; k < flips.size(); ++k)
+      for (std::uint32_t n = last_[k]; n < flips[k]; ++n) flips_.push_back({t, static_cast<double>(k)});
+  last_ = flips;
+  hinges_ = static_cast<int>(flips.size()) - 1;
+  if (energy_.size() > kMaxPoints) halve(energy_);
+  if (flips_.size() > kMaxPoints) halve(flips_);
+}
+
+std::array<Axes, 2> plot_axes(const History& h, double x, double y, double w, double h_px) {
+  double t0 = h.energy().empty() ? 0 : h.energy().front().x, t1 = h.energy().empty() ? 1 : h.energy().back().x;
+  if (!(t1 > t0)) t1 = t0 + 1;
+  double e0 = 0, e1 = 1;
+  if (!h.energy().empty()) {
+    const auto [lo, hi] = std::minmax_element(h.energy().begin(), h.energy().end(),
+                                              [](const Point& a, const Point& b) { return a.y < b.y; });
+    e0 = lo->y;
+    e1 = hi->y;
+    const double pad = std::max(0.05 * (e1 - e0), 1e-9 * std::max(1.0, std::abs(e1)));
+    e0 -= pad;
+    e1 += pad;
+  }
+  // Room for the labels: 60 px left, 22 px above and below each plot.
+  const double left = x + 60, width = std::max(10.0, w - 70), each = std::max(10.0, 0.5 * h_px - 44);
+  return {Axes{left, y + 22, width, each, t0, t1, 0, std::max(1.0, static_cast<double>(h.hinges()) + 0.5)},
+          Axes{left, y + 22 + each + 44, width, each, t0, t1, e0, e1}};
+}
+
+void draw_plots(cairo_t* cr, const History& h, double x, double y, double w, double h_px) {
+  cairo_save(cr);
+  cairo_set_source_rgba(cr, 0, 0, 0, 0.7);
+  cairo_rectangle(cr, x, y, w, h_px);
+  cairo_fill(cr);
+  const auto [front, energy] = plot_axes(h, x, y, w, h_px);
+  frame(cr, front, "ripple front: hinge of each flip-flop", "hinge");
+  frame(cr, energy, "energy", "J");
+  // Inside the frames only.
+  cairo_set_source_rgb(cr, kFlipDot.r / 255.0, kFlipDot.g / 255.0, kFlipDot.b / 255.0);
+  for (const Point& f : h.flips()) {
+    const Point p = front.at(f.x, f.y);
+    cairo_arc(cr, p.x, p.y, 3, 0, 2 * M_PI);
+    cairo_fill(cr);
+  }
+  if (h.energy().size() > 1) {
+    cairo_set_source_rgb(cr, kEnergyLine.r / 255.0, kEnergyLine.g / 255.0, kEnergyLine.b / 255.0);
+    cairo_set_line_width(cr, 1.5);
+    const Point p0 = energy.at(h.energy().front().x, h.energy().front().y);
+    cairo_move_to(cr, p0.x, p0.y);
+    for (const Point& e : h.energy()) {
+      const Point p = energy.at(e.x, e.y);
+      cairo_line_to(cr, p.x, p.y);
+    }
+    cairo_stroke(cr);
+  }
+  cairo_restore(cr);
+}
+
+std::string write_plots_png(const History& h, const std::string& path, int w, int h_px) {
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h_px);
+  cairo_t* cr = cairo_create(surface);
+  cairo_set_source_rgb(cr, kBackground.r / 255.0, kBackground.g / 255.0, kBackground.b / 255.0);
+  cairo_paint(cr);
+  draw_plots(cr, h, 0, 0, w, h_px);
+  cairo_destroy(cr);
+  const cairo_status_t st = cairo_surface_write_to_png(surface, path.c_str());
+  cairo_surface_destroy(surface);
+  return st == CAIRO_STATUS_SUCCESS ? std::string() : cairo_status_to_string(st);
+}
+
+}  // namespace ladder::view
