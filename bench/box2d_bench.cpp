@@ -7,6 +7,7 @@
 // collisions, and its default solver (8 velocity and 3 position iterations, one step per step). Both take dt = 1 ms
 // steps for the same simulated time. Printed per N: block-steps per second and the largest hinge gap [m] at the end
 // of the run for each, and the speed ratio. docs/benchmarks.md records the figures.
+#include "free_chain.hpp"
 #include "ladder/ladder.hpp"
 
 #include <box2d/box2d.h>
@@ -25,16 +26,7 @@ namespace {
 using namespace ladder;
 using Clock = std::chrono::steady_clock;
 
-model::LadderSpec free_chain(int n) {
-  model::LadderSpec spec;
-  spec.blocks = n;
-  spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
-  spec.top = model::Top::Pinned;
-  spec.start = model::Start::Straight;
-  spec.logic = false;
-  spec.kick_omega = 5.0;
-  return spec;
-}
+model::LadderSpec free_chain(int n) { return bench::free_chain_spec(n); }
 
 struct Result {
   double block_steps_per_s = 0, gap = 0;

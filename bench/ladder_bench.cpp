@@ -20,6 +20,7 @@
 // and the simulated time covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
 #include "core/chain3d.hpp"
+#include "free_chain.hpp"
 #include "ladder/ladder.hpp"
 #include "scene/scene.hpp"
 
@@ -41,18 +42,7 @@ core::Options fast(const core::Options& o) {
   return s.options;
 }
 
-// The comparison chain of config/scenes/free-chain.toml: pinned at its top-left corner, a straight column, block 1
-// kicked at 5 rad/s, no ladder logic.
-model::LadderSpec free_chain_spec(int n) {
-  model::LadderSpec spec;
-  spec.blocks = n;
-  spec.length = 0.06, spec.thickness = 0.01, spec.mass = 0.02;
-  spec.top = model::Top::Pinned;
-  spec.start = model::Start::Straight;
-  spec.logic = false;
-  spec.kick_omega = 5.0;
-  return spec;
-}
+using bench::free_chain_spec;  // config/scenes/free-chain.toml's chain (free_chain.hpp)
 
 // The same chain from the hanging start: kicked in zero gravity, or tilted 0.1 rad and released under gravity.
 std::unique_ptr<model::Ladder> chain(int n, bool gravity, bool fast_preset = false) {

@@ -2,6 +2,7 @@
 // the compound pendulum's period through the midpoint's frequency map and at large amplitude, second order, the
 // energy ledger, momentum, a long hanging chain's mode frequencies and stability at large N.
 #include "core/world.hpp"
+#include "test_blocks.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
@@ -16,27 +17,14 @@
 namespace ladder::core {
 namespace {
 
-constexpr double kL = 0.06, kW = 0.01, kM = 0.02, kG = 9.81;
+using test::block, test::rotate_about, test::kL, test::kW, test::kM;
+constexpr double kG = 9.81;
 
 Options midpoint(Vec2 gravity = Vec2(0, -kG)) {
   Options o;
   o.integrator = Integrator::Midpoint;
   o.gravity = gravity;
   return o;
-}
-
-// A uniform kW x kL block as five particles (exact mass, centre and inertia m (L^2 + W^2) / 12); particle c:
-// 0 bottom-right, 1 top-right, 2 bottom-left, 3 top-left, 4 centre.
-PartDef block(Vec2 centre, double angle = 0, Vec2 v = Vec2::Zero(), double w = 0) {
-  PartDef d;
-  for (int c = 0; c < 4; ++c)
-    d.particles.push_back({kM / 12, Vec2((c & 2) ? -kW / 2 : kW / 2, (c & 1) ? kL / 2 : -kL / 2)});
-  d.particles.push_back({2 * kM / 3, Vec2::Zero()});
-  d.position = centre;
-  d.angle = angle;
-  d.velocity = v;
-  d.omega = w;
-  return d;
 }
 
 // A thin uniform rod of length kL along its y axis: m/6 at each end and 2m/3 at the centre give the exact inertia
@@ -51,16 +39,6 @@ PartDef rod(Vec2 centre, double angle, Vec2 v = Vec2::Zero(), double w = 0) {
   return d;
 }
 
-int pin(World& world, Vec2 at) {
-  PartDef p;
-  p.particles.push_back({0.0, Vec2::Zero()});
-  p.position = at;
-  p.kinematic = true;
-  return world.first_particle(world.add_part(p));
-}
-
-Vec2 rotate_about(Vec2 p, Vec2 pivot, double a) { return pivot + Rot::of(a) * (p - pivot); }
-
 // A chain of n rods hanging from a pin at the origin, rod i turned by angle[i]; returns the part indices.
 std::vector<int> hanging_rods(World& world, const std::vector<double>& angle) {
   std::vector<int> parts;
@@ -70,7 +48,7 @@ std::vector<int> hanging_rods(World& world, const std::vector<double>& angle) {
     parts.push_back(world.add_part(rod(top + 0.5 * down, a)));
     top += down;
   }
-  world.connect(pin(world, Vec2::Zero()), world.first_particle(parts[0]));
+  world.connect(test::anchor(world, Vec2::Zero()), world.first_particle(parts[0]));
   for (size_t i = 1; i < parts.size(); ++i)
     world.connect(world.first_particle(parts[i - 1]) + 1, world.first_particle(parts[i]));
   world.finalize();
@@ -95,7 +73,7 @@ double pendulum_period(double dt, double amplitude, int periods) {
   const double eq = -std::atan2(kW, kL);
   const Vec2 straight(kW / 2, -kL / 2);
   const int part = world.add_part(block(rotate_about(straight, Vec2::Zero(), eq + amplitude), eq + amplitude));
-  world.connect(pin(world, Vec2::Zero()), world.first_particle(part) + 3);
+  world.connect(test::anchor(world, Vec2::Zero()), world.first_particle(part) + 3);
   world.finalize();
   std::vector<double> crossings;
   double prev = world.part_angle(part) - eq;
