@@ -88,13 +88,12 @@ void World::step_midpoint(double h) {
   // The driven bodies move to their poses at the end; what they were at the start serves the work and the friction.
   m.kinematic_start.clear();
   for (const int b : kinematic_bodies_) m.kinematic_start.push_back(state_[static_cast<size_t>(b)]);
-  std::vector<Vec2> kinematic_p0;  // the kinematic rows' driven anchors at the start
-  kinematic_p0.reserve(kinematic_rows_.size());
+  m.kinematic_anchor.clear();  // the kinematic rows' driven anchors at the start
   for (const int k : kinematic_rows_) {
     const Row& r = rows_[static_cast<size_t>(k)];
     const bool ak = bodies_[r.a].kinematic;
     const BodyState& s = state_[ak ? r.a : r.b];
-    kinematic_p0.push_back(s.x + s.q * (ak ? r.ra : r.rb));
+    m.kinematic_anchor.push_back(s.x + s.q * (ak ? r.ra : r.rb));
   }
   drive_kinematic(t1);
 
@@ -106,6 +105,7 @@ void World::step_midpoint(double h) {
   m.beta.resize(nb);
   m.vbar.resize(nb);
   m.vfree.resize(nb);
+  m.gyration.resize(nb);
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
     const BodyState& s = state_[b];
@@ -126,6 +126,7 @@ void World::step_midpoint(double h) {
     // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
     m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
     m.t[b] = 0.5 * h * s.w;
+    m.gyration[b] = std::sqrt(body.inertia * body.inv_mass);
   }
   // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
   for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
@@ -225,11 +226,8 @@ void World::step_midpoint(double h) {
     m.t[i] += (-m.rho[i] + h / (4 * bodies_[static_cast<size_t>(i)].inertia) * dang) / m.jac[i];
   };
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
-  m.gyration.resize(nb);
   m.stiff_coef.resize(nb);
   m.lift.resize(nb);
-  for (size_t b = 0; b < nb; ++b)
-    if (!bodies_[b].kinematic) m.gyration[b] = std::sqrt(bodies_[b].inertia * bodies_[b].inv_mass);
   for (int iteration = 0;; ++iteration) {
     if (forced) {  // the users' forces' moments at their midpoint levers, and their loads along the end levers
       std::fill(m.force_ang.begin(), m.force_ang.end(), 0.0);
@@ -337,7 +335,7 @@ void World::step_midpoint(double h) {
     const Row& r = rows_[k];
     const bool ak = bodies_[r.a].kinematic;
     const BodyState& s = state_[ak ? r.a : r.b];
-    const Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - kinematic_p0[i];
+    const Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - m.kinematic_anchor[i];
     work += (ak ? -m.lam[k] : m.lam[k]).dot(moved) / h;  // the impulse over h is the mean force
     row_impulse_[k] = m.lam[k];
   }

@@ -471,6 +471,7 @@ class World {
     std::vector<Vec2> vbar, vfree, lam, dlam, mid_a, mid_b, end_a, end_b;
     std::vector<BodyState> kinematic_start;
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
+    std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
   };
   MidpointWork mid_;
 
