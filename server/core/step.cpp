@@ -214,6 +214,7 @@ void World::step(double h, bool adaptive, Snapshot* before) {
     before->t = t_;
     before->structure = structure_;
     before->adaptive_h = adaptive_h_;
+    before->hinge_forces = hinge_force_;
   }
   if (whole)
     step_adaptive(h);
@@ -408,7 +409,7 @@ double World::finish_work(double t0, double h) const {
 
 Snapshot World::save() const {
   if (dirty_) throw std::logic_error("save: the model has unbuilt hinges; call finalize() first");
-  return {state_, forces_, t_, structure_, adaptive_h_};
+  return {state_, forces_, t_, structure_, adaptive_h_, hinge_force_};
 }
 
 void World::restore(const Snapshot& s) {
@@ -417,6 +418,7 @@ void World::restore(const Snapshot& s) {
   forces_ = s.forces;
   t_ = s.t;
   adaptive_h_ = s.adaptive_h;
+  hinge_force_ = s.hinge_forces;
   mark_state_changed();
 }
 

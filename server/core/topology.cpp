@@ -3,6 +3,7 @@
 #include "core/world.hpp"
 
 #include <algorithm>
+#include <map>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -274,6 +275,17 @@ void World::rebuild() {
   std::vector<PartMotion> motion(static_cast<size_t>(np));
   for (int i = 0; i < np; ++i) motion[i] = part_motion(i);
 
+  // The hinge forces of the rows that exist now, by their joint's two particles and oriented as acting on the first
+  // particle's body, for the rows that the new structure keeps (hinge_force_).
+  std::map<std::pair<int, int>, Vec2> kept_force;
+  if (hinge_force_.size() == rows_.size())
+    for (size_t k = 0; k < rows_.size(); ++k) {
+      const Joint& jt = joints_[static_cast<size_t>(rows_[k].joint)];
+      if (!jt.alive || jt.kind != JointKind::Hinge) continue;
+      const bool flipped = particles_[jt.pa].part != rows_[k].part_a;
+      kept_force[{jt.pa, jt.pb}] = flipped ? Vec2(-hinge_force_[k]) : hinge_force_[k];
+    }
+
   // Drop broken joints so that the joint list does not grow with every flip-flop.
   std::erase_if(joints_, [](const Joint& j) { return !j.alive; });
 
@@ -351,6 +363,13 @@ void World::rebuild() {
     if (rows_[k].kinematic_side) kinematic_rows_.push_back(static_cast<int>(k));
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
+  hinge_force_.assign(rows_.size(), Vec2::Zero());
+  for (size_t k = 0; k < rows_.size(); ++k) {
+    const Joint& jt = joints_[static_cast<size_t>(rows_[k].joint)];
+    const auto it = kept_force.find({jt.pa, jt.pb});
+    if (it == kept_force.end()) continue;
+    hinge_force_[k] = particles_[jt.pa].part != rows_[k].part_a ? Vec2(-it->second) : it->second;
+  }
   ++structure_;
   mark_state_changed();
   factor_version_ = 0;

@@ -124,6 +124,7 @@ struct Snapshot {
   double t = 0;
   std::uint64_t structure = 0;
   double adaptive_h = 0;  // the adaptive step's next trial sub-step: a redone step chooses the same sub-steps
+  std::vector<Vec2> hinge_forces;  // the midpoint step's first guess: a redone step starts its solve from the same
 };
 
 // Per-step solver figures, for statistics and warnings.
@@ -424,6 +425,11 @@ class World {
   // step's anchors; every row while a weld exists, else the rows with a kinematic body only), per body the state
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
+  // The midpoint step's mean hinge forces over the last step [N] (its impulses over h), per row: the next step's first
+  // guess, which saves it most of its Newton iterations (a chain at rest needs none). Saved in snapshots, so that a
+  // redone step, a re-simulation and a resumed log (a re-run from the start) take the same bits; carried across a
+  // rebuild for the hinges that remain, zero for a new one.
+  std::vector<Vec2> hinge_force_;
   std::vector<BodyState> step_start_;
   std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
@@ -467,11 +473,12 @@ class World {
   // and the mean velocity's change vbar - v, with the sums and Newton terms of the current iterate; per row the impulse, the levers at
   // the midpoint and the end.
   struct MidpointWork {
-    std::vector<double> t, rho, jac, alpha, beta, gyration, stiff_coef, lift, force_ang, force_stiff;
+    std::vector<double> t, rho, inv_jac, alpha, beta, spin_gain, damp, gyration, stiff_coef, lift, force_ang, force_stiff;
     std::vector<Vec2> vbar, vfree, lam, dlam, mid_a, mid_b, end_a, end_b;
     std::vector<BodyState> kinematic_start;
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
     std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
+    bool guess_was_right = false;  // the last step's first guess solved it: try this one's residual alone first
   };
   MidpointWork mid_;
 
