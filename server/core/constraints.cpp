@@ -37,10 +37,7 @@ void World::world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const {
   const size_t n = rows_.size();
   ua.resize(n);
   ub.resize(n);
-  for (size_t k = 0; k < n; ++k) {
-    ua[k] = state_[rows_[k].a].q * rows_[k].ra;
-    ub[k] = state_[rows_[k].b].q * rows_[k].rb;
-  }
+  for (size_t k = 0; k < n; ++k) row_levers(k, ua[k], ub[k]);
 }
 
 // The velocity projection that ends a step leaves the anchors of the state it projected in ua0_/ub0_; the next
@@ -89,7 +86,7 @@ double World::residuals(std::vector<Vec2>& c) const {
   c.resize(n);
   double worst = 0;
   for (size_t k = 0; k < n; ++k) {
-    c[k] = row_residual(rows_[k]);
+    c[k] = row_residual(k);
     worst = std::max(worst, c[k].squaredNorm());
   }
   return std::sqrt(worst);
@@ -129,7 +126,7 @@ double World::forward_residual(const BlockTridiag& sys) {
   c_.resize(rows_.size());
   double worst = 0;
   sys.forward(mu_, [this, &worst](int k) HOT_INLINE {
-    c_[k] = row_residual(rows_[k]);
+    c_[k] = row_residual(static_cast<size_t>(k));
     worst = std::max(worst, c_[k].squaredNorm());
     return Vec2(-c_[k]);
   });
@@ -146,7 +143,8 @@ void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
-    const Vec2 ua = state_[r.a].q * r.ra, ub = state_[r.b].q * r.rb;
+    Vec2 ua, ub;
+    row_levers(static_cast<size_t>(k), ua, ub);
     d = diagonal_block(ua, ub, ua0[k], ub0[k], A.inv_mass, A.inv_inertia, B.inv_mass, B.inv_inertia);
     if (r.link_prev) {
       u_prev = coupling_block(ub_prev, ua0[k], A.inv_mass, A.inv_inertia);
@@ -175,7 +173,7 @@ double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec
   Vec2* c = c_.data();
   double worst = 0;
   const auto check = [&](int k) HOT_INLINE {
-    c[k] = row_residual(rows[k]);
+    c[k] = row_residual(static_cast<size_t>(k));
     worst = std::max(worst, c[k].squaredNorm());
   };
   sys.backward(mu_, [&](int k) HOT_INLINE {
@@ -419,6 +417,7 @@ void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>
     const Vec2 acc_a = lin[r.a] + ang[r.a] * perp(ua_[k]) - a.w * a.w * ua_[k];
     const Vec2 acc_b = lin[r.b] + ang[r.b] * perp(ub_[k]) - b.w * b.w * ub_[k];
     mu_[k] = -(acc_a - acc_b);
+    if (r.rolls) mu_[k] -= rolling_acceleration(k);
   }
   system_.solve(mu_);
   for (size_t k = 0; k < n; ++k) {

@@ -54,6 +54,22 @@ struct Levers {
   return {k * (u + t * pu), k * ((1 - t * t) * u + (2 * t) * pu)};
 }
 
+// A rolling row's contact over the step (docs/model.md section 9): from its direction u0 at the start and its two
+// bodies' half-angle tangents, the direction at the end u+ = u0 R(atan t_a + atan t_b) and kappa r ubar, the share
+// of the contact offset that each body's midpoint lever carries (ubar = (u0 + u+) / 2): 2 r (u+ - u0) =
+// 2 (t_a + t_b) perp(kappa r ubar) exactly, with kappa = 2 / (1 - t_a t_b + sqrt((1 + t_a^2)(1 + t_b^2))).
+struct Rolling {
+  Vec2 end, mid;  // r u+ and kappa r ubar
+};
+[[gnu::always_inline]] inline Rolling rolling(const Vec2& u0, double r, double ta, double tb) {
+  const double s = std::sqrt((1 + ta * ta) * (1 + tb * tb)), c = 1 - ta * tb;
+  const double inv = 1 / s;
+  const Vec2 turn(c * inv, (ta + tb) * inv);  // R(atan t_a + atan t_b)
+  const Vec2 u1(turn.x() * u0.x() - turn.y() * u0.y(), turn.y() * u0.x() + turn.x() * u0.y());
+  const double kappa = 2 / (c + s);
+  return {r * u1, (0.5 * kappa * r) * (u0 + u1)};
+}
+
 // Newton-matrix coupling of a body's two rows through it: hbar I + e perp(end) perp(mid)^T.
 [[gnu::always_inline]] inline Mat2 coupling(double ha, double e, const Vec2& end, const Vec2& mid) {
   const Vec2 pe = perp(end), pm = perp(mid);
@@ -98,6 +114,12 @@ void World::step_midpoint(double h) {
     solve_positions(ua0_, ub0_, 0.0);
   }
   // The driven bodies move to their poses at the end; what they were at the start serves the work and the friction.
+  // A rolling row's contact direction at the start (before the drives move their bodies).
+  if (has_rolling_) {
+    m.roll_u0.resize(n);
+    for (size_t k = 0; k < n; ++k)
+      if (rows_[k].rolls) m.roll_u0[k] = roll_offset(k) / roll_[k].radius;
+  }
   m.kinematic_start.clear();
   for (const int b : kinematic_bodies_) m.kinematic_start.push_back(state_[static_cast<size_t>(b)]);
   m.kinematic_anchor.clear();  // the kinematic rows' driven anchors at the start
@@ -169,7 +191,14 @@ void World::step_midpoint(double h) {
   m.end_a.resize(n);
   m.end_b.resize(n);
   m.dlam.resize(n);
-  world_anchors(ua0_, ub0_);  // dynamic sides: the start levers; driven sides: their levers at the end
+  // The arc-centre levers (a plain hinge's whole levers; a rolling row's contact offset is added per iterate):
+  // dynamic sides at the start, driven sides at the end.
+  ua0_.resize(n);
+  ub0_.resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
+    ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
+  }
   anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
 
   const double tol = options_.tolerance;
@@ -190,7 +219,12 @@ void World::step_midpoint(double h) {
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
     if (prev >= 0) {
       const Vec2& l = m.lam[prev];
-      const Levers v = levers(ub0_[prev], ti, k);
+      Levers v = levers(ub0_[prev], ti, k);
+      if (rows_[prev].rolls) {
+        const Rolling c = rolling(m.roll_u0[prev], roll_[prev].radius, m.t[rows_[prev].a], ti);
+        v.mid -= c.mid;
+        v.end -= c.end;
+      }
       m.mid_b[prev] = v.mid;
       m.end_b[prev] = v.end;
       lin -= l;
@@ -204,7 +238,12 @@ void World::step_midpoint(double h) {
     }
     if (next >= 0) {
       const Vec2& l = m.lam[next];
-      const Levers v = levers(ua0_[next], ti, k);
+      Levers v = levers(ua0_[next], ti, k);
+      if (rows_[next].rolls) {
+        const Rolling c = rolling(m.roll_u0[next], roll_[next].radius, ti, m.t[rows_[next].b]);
+        v.mid += c.mid;
+        v.end += c.end;
+      }
       m.mid_a[next] = v.mid;
       m.end_a[next] = v.end;
       lin += l;
@@ -269,13 +308,17 @@ void World::step_midpoint(double h) {
     const auto residual_row = [&](int k) HOT_INLINE {
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
-      if (ak) {
-        m.mid_a[k] = m.end_a[k] = ua0_[k];
+      if (ak) {  // (a driven side's levers enter no angular equation: only its end point counts)
+        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a],
+                                                                   m.t[r.b]).end)
+                                          : ua0_[k];
       } else if (!r.link_prev) {
         finish_body(r.a, -1, k, worst_rho);
       }
       if (bk) {
-        m.mid_b[k] = m.end_b[k] = ub0_[k];
+        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a],
+                                                                   m.t[r.b]).end)
+                                          : ub0_[k];
       } else {
         finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho);
       }
@@ -379,7 +422,11 @@ void World::step_midpoint(double h) {
     const Row& r = rows_[k];
     const bool ak = bodies_[r.a].kinematic;
     const BodyState& s = state_[ak ? r.a : r.b];
-    const Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - m.kinematic_anchor[i];
+    Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - m.kinematic_anchor[i];
+    if (r.rolls) {  // and the driven side's share of the contact's roll, 2 t perp(kappa r ubar) (a) or minus it (b)
+      const Rolling c = rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b]);
+      moved += (ak ? 2 * m.t[r.a] : -2 * m.t[r.b]) * perp(c.mid);
+    }
     work += (ak ? -m.lam[k] : m.lam[k]).dot(moved) / h;  // the impulse over h is the mean force
     row_impulse_[k] = m.lam[k];
   }

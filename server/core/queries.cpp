@@ -87,10 +87,19 @@ double World::angular_momentum(const std::vector<int>& parts, const Vec2& about)
   return l;
 }
 
+// A joint's gap: its two particles' distance, and for a rolling joint their arc centres' offset from 2 r along the
+// rolling direction, u from pa's toward pb's (the parts' own angles, unwrapped).
+Vec2 World::joint_gap(const Joint& j) const {
+  const Vec2 gap = particle_position(j.pa) - particle_position(j.pb);
+  if (!(j.radius > 0)) return gap;
+  const double psi = 0.5 * (part_angle(particles_[j.pa].part) + part_angle(particles_[j.pb].part)) + j.psi0;
+  return gap + 2 * j.radius * Vec2(std::cos(psi), std::sin(psi));
+}
+
 double World::max_hinge_error() const {
   double worst = 0;
   for (const Joint& j : joints_)
-    if (j.alive) worst = std::max(worst, (particle_position(j.pa) - particle_position(j.pb)).norm());
+    if (j.alive) worst = std::max(worst, joint_gap(j).norm());
   return worst;
 }
 
@@ -174,17 +183,28 @@ double World::weld_moment(int pa, int pb) const {
   for (size_t k = 0; k < rows_.size(); ++k) {
     const Row& r = rows_[k];
     const double friction = options_.hinge_friction * (state_[r.b].w - state_[r.a].w) * h;
+    // A rolling row acts at its contact point, r u from the arc centre (u at mid-step, from both bodies' angles).
+    const Vec2 roll = r.rolls ? Vec2(0.5 * (roll_offset(k, step_start_[r.a], step_start_[r.b]) + roll_offset(k)))
+                              : Vec2::Zero();
     if (in[r.part_a]) {
       j_rows += row_impulse_[k];
-      m_rows += cross(mid(r.ra) - c, row_impulse_[k]) + friction;
+      m_rows += cross(mid(r.ra) + roll - c, row_impulse_[k]) + friction;
     }
     if (in[r.part_b]) {
       j_rows -= row_impulse_[k];
-      m_rows -= cross(mid(r.rb) - c, row_impulse_[k]) + friction;
+      m_rows -= cross(mid(r.rb) - roll - c, row_impulse_[k]) + friction;
     }
   }
   const Part& pbp = parts_[part_b];
-  const Vec2 weld_point = mid(pbp.rel_x + pbp.rel_q * particles_[pb].local);
+  Vec2 weld_point = mid(pbp.rel_x + pbp.rel_q * particles_[pb].local);
+  const Joint& jt = joints_[static_cast<size_t>(j)];
+  if (jt.radius > 0) {  // a rolling weld's pivot: the contact point, r u from pb's arc centre toward pa's
+    const Part& pap = parts_[part_a];
+    const double th = 0.5 * (s0.th + s1.th);
+    const double psi = th + 0.5 * (pap.rel_th + pbp.rel_th) + jt.psi0;
+    const Vec2 u(std::cos(psi), std::sin(psi));
+    weld_point += (jt.pa == pb ? 1.0 : -1.0) * jt.radius * u;
+  }
   const Vec2 j_weld = m * (v1 - v0) - h * f_ext - j_rows;
   const double angular = inertia * (s1.w - s0.w) - h * tau_ext - m_rows - cross(weld_point - c, j_weld);
   return angular / h;

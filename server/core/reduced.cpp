@@ -86,6 +86,7 @@ void World::step_reduced(double h) {
     const Row& r = rows_[k];
     symmetric_row(k, ua0_, ub0_, d, u_prev);
     rhs = -(free_acceleration(r.a, ua0_[k]) - free_acceleration(r.b, ub0_[k]));
+    if (r.rolls) rhs -= rolling_acceleration(static_cast<size_t>(k));
   };
   if (n > 0) {
     stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
@@ -135,16 +136,23 @@ void World::step_reduced(double h) {
   state_.swap(other_state_);
   drive_kinematic(t1);  // the driven ends, where their drives are at the end
   // Pass 3: every other body where its hinge puts it, moving as its hinge moves, from each chain's first body on.
-  const auto place = [&](BodyState& to, const Vec2& r_to, const BodyState& from, const Vec2& r_from) HOT_INLINE {
-    const Vec2 p_from = from.q * r_from, p_to = to.q * r_to;
+  // (A rolling row's levers reach its contact point, from both bodies' angles, which are final by now.)
+  const auto place = [&](int k, bool to_a) HOT_INLINE {
+    const Row& r = rows_[k];
+    Vec2 ua, ub;
+    row_levers(static_cast<size_t>(k), ua, ub);
+    BodyState& to = state_[to_a ? r.a : r.b];
+    const BodyState& from = state_[to_a ? r.b : r.a];
+    const Vec2& p_from = to_a ? ub : ua;
+    const Vec2& p_to = to_a ? ua : ub;
     to.x = (from.x + p_from) - p_to;
     to.v = (from.v + from.w * perp(p_from)) - to.w * perp(p_to);
   };
   for (const ReducedChain& c : reduced_chains_) {
     if (c.from_end) {
-      for (int k = c.last; k >= c.first; --k) place(state_[rows_[k].a], rows_[k].ra, state_[rows_[k].b], rows_[k].rb);
+      for (int k = c.last; k >= c.first; --k) place(k, true);
     } else {
-      for (int k = c.first; k <= c.last; ++k) place(state_[rows_[k].b], rows_[k].rb, state_[rows_[k].a], rows_[k].ra);
+      for (int k = c.first; k <= c.last; ++k) place(k, false);
     }
   }
   t_ = t1;

@@ -370,7 +370,9 @@ void World::start_work() {
     const Row& r = rows_[k];
     const bool a_kinematic = bodies_[r.a].kinematic;
     const BodyState& s = state_[a_kinematic ? r.a : r.b];
-    kinematic_v0_.push_back(point_velocity(s, s.q * (a_kinematic ? r.ra : r.rb)));
+    Vec2 ua, ub;
+    row_levers(static_cast<size_t>(k), ua, ub);
+    kinematic_v0_.push_back(point_velocity(s, a_kinematic ? ua : ub));
     row_impulse_[k].setZero();
   }
   force_arm_.clear();
@@ -400,7 +402,9 @@ double World::finish_work(double t0, double h) const {
     const Row& r = rows_[static_cast<size_t>(kinematic_rows_[i])];
     const bool a_kinematic = bodies_[r.a].kinematic;
     const BodyState& s = state_[a_kinematic ? r.a : r.b];
-    const Vec2 v1 = point_velocity(s, s.q * (a_kinematic ? r.ra : r.rb));
+    Vec2 ua, ub;
+    row_levers(static_cast<size_t>(kinematic_rows_[i]), ua, ub);
+    const Vec2 v1 = point_velocity(s, a_kinematic ? ua : ub);
     const Vec2 j = row_impulse_[static_cast<size_t>(kinematic_rows_[i])];
     work += (a_kinematic ? -j : j).dot(0.5 * (kinematic_v0_[i] + v1));
   }

@@ -3,7 +3,9 @@
 #include "core/world.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -110,8 +112,21 @@ int World::find_joint(int pa, int pb) const {
   return -1;
 }
 
-Restructure World::combine(int pa, int pb) {
+// The offset psi0 of a new rolling joint from where its particles are now: u points from pa's arc centre toward
+// pb's, and psi = (theta_a + theta_b) / 2 + psi0 is its direction (theta the parts' unwrapped angles). They should be
+// 2 r apart; a difference is the joint's gap, closed as a plain hinge's is.
+double World::rolling_offset(int pa, int pb) const {
+  const Vec2 d = particle_position(pb) - particle_position(pa);
+  if (!(d.norm() > 0))
+    throw std::invalid_argument("a rolling hinge needs its two arc centres apart (they are " + particle_name(pa) +
+                                " and " + particle_name(pb) + ", at one point)");
+  return std::atan2(d.y(), d.x()) - 0.5 * (part_angle(particles_[pa].part) + part_angle(particles_[pb].part));
+}
+
+Restructure World::combine(int pa, int pb, double roll_radius) {
   ensure_built();
+  if (!(roll_radius >= 0) || !std::isfinite(roll_radius))
+    throw std::invalid_argument("combine: the rolling radius must be a finite number >= 0");
   if (pa < 0 || pb < 0 || pa >= particle_count() || pb >= particle_count())
     throw std::invalid_argument("combine: no such particle (" + std::to_string(pa) + ", " + std::to_string(pb) + ")");
   const int part_a = particles_[pa].part, part_b = particles_[pb].part;
@@ -142,7 +157,7 @@ Restructure World::combine(int pa, int pb) {
                                     std::to_string(jt.pa) + " and " + std::to_string(jt.pb) +
                                     "; combine those to weld them");
     }
-    joints_.push_back({pa, pb, JointKind::Hinge, true});
+    joints_.push_back({pa, pb, JointKind::Hinge, true, roll_radius, roll_radius > 0 ? rolling_offset(pa, pb) : 0.0});
     result.kind = JointKind::Hinge;
   }
   try {
@@ -261,12 +276,14 @@ void World::set_body_from_parts(int b, const std::vector<int>& parts, const std:
   }
 }
 
-void World::connect(int pa, int pb) {
+void World::connect(int pa, int pb, double roll_radius) {
   if (pa < 0 || pb < 0 || pa >= particle_count() || pb >= particle_count() ||
       particles_[pa].part == particles_[pb].part)
     throw std::invalid_argument("connect: particles " + std::to_string(pa) + " and " + std::to_string(pb) +
                                 " cannot be hinged");
-  joints_.push_back({pa, pb, JointKind::Hinge, true});
+  if (!(roll_radius >= 0) || !std::isfinite(roll_radius))
+    throw std::invalid_argument("connect: the rolling radius must be a finite number >= 0");
+  joints_.push_back({pa, pb, JointKind::Hinge, true, roll_radius, roll_radius > 0 ? rolling_offset(pa, pb) : 0.0});
   dirty_ = true;
 }
 
@@ -329,7 +346,8 @@ void World::rebuild() {
       throw std::invalid_argument("a hinge between particles " + std::to_string(jt.pa) + " and " +
                                   std::to_string(jt.pb) + " would join a body to itself (a closed loop)");
     if (bodies[a].kinematic && bodies[b].kinematic) continue;  // nothing can move: no equation to solve
-    rows.push_back({Vec2::Zero(), Vec2::Zero(), a, b, pa, pb, static_cast<int>(j), false, false, false, false, false});
+    rows.push_back(
+        {Vec2::Zero(), Vec2::Zero(), a, b, pa, pb, static_cast<int>(j), false, false, false, false, false, false});
   }
   order_rows(bodies, rows);  // may throw: nothing is committed yet
   // Commit.
@@ -347,6 +365,18 @@ void World::rebuild() {
     r.ra = A.rel_x + A.rel_q * particles_[qa].local;
     r.rb = B.rel_x + B.rel_q * particles_[qb].local;
   }
+  // Rolling rows: psi = (theta_pa + theta_pb) / 2 + psi0 in the parts' angles is, in the bodies', (th_a + th_b) / 2 +
+  // psi0 + (rel_th_a + rel_th_b) / 2; a row that runs from the joint's pb to its pa has u the other way.
+  roll_.assign(rows.size(), Roll{});
+  for (size_t k = 0; k < rows.size(); ++k) {
+    Row& r = rows[k];
+    const Joint& jt = joints_[r.joint];
+    r.rolls = jt.radius > 0;
+    if (!r.rolls) continue;
+    const bool swapped = particles_[jt.pa].part != r.part_a;
+    roll_[k] = {jt.radius, jt.psi0 + 0.5 * (parts_[r.part_a].rel_th + parts_[r.part_b].rel_th) +
+                               (swapped ? std::numbers::pi : 0.0)};
+  }
   rows_ = std::move(rows);
   for (size_t k = 0; k < rows_.size(); ++k) {
     Row& r = rows_[k];
@@ -361,6 +391,7 @@ void World::rebuild() {
   kinematic_rows_.clear();
   for (size_t k = 0; k < rows_.size(); ++k)
     if (rows_[k].kinematic_side) kinematic_rows_.push_back(static_cast<int>(k));
+  has_rolling_ = std::any_of(rows_.begin(), rows_.end(), [](const Row& r) { return r.rolls; });
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
   hinge_force_.assign(rows_.size(), Vec2::Zero());

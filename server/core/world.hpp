@@ -23,6 +23,7 @@
 #include "core/geometry.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -190,12 +191,19 @@ class World {
 
   // Hinges two particles while building a model whose velocities are already consistent: no velocity fix, and
   // the bodies and hinge rows are rebuilt once, before the next step (so building n hinges costs O(n)).
-  void connect(int pa, int pb);
+  // `roll_radius` > 0 makes it a rolling hinge (below, combine()).
+  void connect(int pa, int pb, double roll_radius = 0);
   // Rebuilds now if connect() was called; throws if the hinges do not form chains.
   void finalize() { ensure_built(); }
 
   // --- restructuring (the paper's combine and separate) ---
-  Restructure combine(int pa, int pb);
+  // A new hinge with `roll_radius` r > 0 is a rolling hinge: the two particles are the centres of two arcs of radius
+  // r, one fixed in each part, that roll on each other without slipping (docs/model.md section 9). They are held 2 r
+  // apart along the direction psi = (theta_a + theta_b) / 2 + psi0 (theta the parts' angles; psi0 from where the
+  // particles are when the hinge is made), and the hinge acts at the contact point, halfway between them. r = 0 is
+  // the plain hinge. On a pair that is already hinged, combine welds (whatever the radius), and separate() of the
+  // weld gives back the hinge it was, rolling or not.
+  Restructure combine(int pa, int pb, double roll_radius = 0);
   Restructure separate(int pa, int pb);
   // The joint between two particles, or -1.
   int find_joint(int pa, int pb) const;
@@ -258,7 +266,9 @@ class World {
   Energy energy() const;            // both, in one pass (no pass when nothing moved since the last call)
   Vec2 linear_momentum(const std::vector<int>& parts) const;
   double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
-  double max_hinge_error() const;   // largest distance between two hinged particles [m]
+  double max_hinge_error() const;   // largest gap of a hinge or weld: two hinged particles' distance (rolling: its
+                                    // arc centres' distance from 2 r along the rolling direction) [m]
+  double roll_radius(int joint) const { return joints_[joint].radius; }  // 0 for a plain hinge
   bool finite() const;              // no NaN or infinity anywhere in the state
 
   // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
@@ -283,7 +293,14 @@ class World {
     Rot rel_q;
     int body = -1;
   };
-  struct Joint { int pa, pb; JointKind kind; bool alive; };
+  // A joint between particles pa and pb; a rolling one (radius > 0) keeps its contact direction's offset psi0
+  // (combine()).
+  struct Joint {
+    int pa, pb;
+    JointKind kind;
+    bool alive;
+    double radius = 0, psi0 = 0;
+  };
   struct Body {
     double mass = 0, inertia = 0, inv_mass = 0, inv_inertia = 0;
     bool kinematic = false;
@@ -303,8 +320,17 @@ class World {
     bool corrects_a;   // body a is dynamic and in no earlier row: this row's sweep step corrects it
     bool corrects_b;   // body b is dynamic
     bool kinematic_side;  // body a or b is kinematic: the row's impulses are recorded for the work its drive does
+    bool rolls;           // a rolling hinge: its levers move with the contact point (roll_[k])
+  };
+  // A rolling row's arc radius and the offset of its contact direction from its bodies' mean angle:
+  // u = (cos psi, sin psi), psi = (th_a + th_b) / 2 + psi0, u pointing from body a's arc centre toward body b's.
+  struct Roll {
+    double radius = 0, psi0 = 0;
   };
   static_assert(sizeof(Row) == 64, "a Row is one cache line");
+
+  Vec2 joint_gap(const Joint& j) const;  // queries.cpp
+  double rolling_offset(int pa, int pb) const;  // topology.cpp
 
   // topology.cpp
   void rebuild();
@@ -319,10 +345,43 @@ class World {
   // constraints.cpp
   void world_anchors(std::vector<Vec2>& ua, std::vector<Vec2>& ub) const;
   void start_anchors();  // ua0_, ub0_ at the current state (kept from the last velocity projection when still valid)
-  Vec2 row_residual(const Row& r) const {
+  // A rolling row's contact offset r u at the current state (or at the bodies' states given): its levers are
+  // q_a ra + r u and q_b rb - r u, and its gap (x_a + q_a ra) - (x_b + q_b rb) + 2 r u. The Jacobian of that gap is
+  // a plain hinge's at the contact point (docs/model.md section 9), so every solve works with these levers as they
+  // are. The angles are the unwrapped ones: the contact direction turns continuously through any number of turns.
+  Vec2 roll_offset(size_t k, const BodyState& a, const BodyState& b) const {
+    const Roll& rl = roll_[k];
+    const double psi = 0.5 * (a.th + b.th) + rl.psi0;
+    return rl.radius * Vec2(std::cos(psi), std::sin(psi));
+  }
+  Vec2 roll_offset(size_t k) const { return roll_offset(k, state_[rows_[k].a], state_[rows_[k].b]); }
+  // What a rolling row's gap accelerates by beyond a plain hinge's at its contact point, -w^2 u on each lever:
+  // the gap's second derivative has -w_a^2 (q_a ra) + w_b^2 (q_b rb) - 2 r psi'^2 u, psi' = (w_a + w_b) / 2, which is
+  // the plain hinge's -w_a^2 u_a + w_b^2 u_b plus (w_a - w_b)^2 / 2 r u (the index-1 equations of the explicit and
+  // reduced integrators need it).
+  Vec2 rolling_acceleration(size_t k) const {
+    const BodyState& a = state_[rows_[k].a];
+    const BodyState& b = state_[rows_[k].b];
+    const double dw = a.w - b.w;
+    return (0.5 * dw * dw) * roll_offset(k, a, b);
+  }
+  // Row k's levers (world frame, from each body's centre to the hinge point) at the current state.
+  [[gnu::always_inline]] void row_levers(size_t k, Vec2& ua, Vec2& ub) const {
+    const Row& r = rows_[k];
+    ua = state_[r.a].q * r.ra;
+    ub = state_[r.b].q * r.rb;
+    if (r.rolls) {
+      const Vec2 u = roll_offset(k);
+      ua += u;
+      ub -= u;
+    }
+  }
+  Vec2 row_residual(size_t k) const {
+    const Row& r = rows_[k];
     const BodyState& a = state_[r.a];
     const BodyState& b = state_[r.b];
-    return (a.x + a.q * r.ra) - (b.x + b.q * r.rb);
+    const Vec2 gap = (a.x + a.q * r.ra) - (b.x + b.q * r.rb);
+    return r.rolls ? Vec2(gap + 2 * roll_offset(k, a, b)) : gap;
   }
   double position_residual();  // residuals(c_), or the last solve's when the positions have not changed since
   // q += W (f, tau) for one dynamic body, f and tau its sums of row multipliers and their moments; with
@@ -402,6 +461,7 @@ class World {
   std::vector<Body> bodies_;
   std::vector<std::vector<int>> body_parts_;
   std::vector<Row> rows_;
+  std::vector<Roll> roll_;  // per row; radius 0 for a plain hinge
   std::vector<BodyState> state_;
   std::vector<BodyState> other_state_;  // the reduced step writes here, then swaps: it holds the state before it
   std::vector<AppliedForce> forces_;
@@ -442,6 +502,7 @@ class World {
   std::vector<double> kin_alpha_;
 
   bool has_welds_ = false;
+  bool has_rolling_ = false;  // a rolling row exists (rebuild())
   // The rows with a kinematic body (rebuild()), and for the step under way their kinematic anchors' velocities at
   // its start; the applied forces' lever arms and points' velocities at its start. For StepStats::work.
   std::vector<int> kinematic_rows_;
@@ -478,6 +539,7 @@ class World {
     std::vector<BodyState> kinematic_start;
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
     std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
+    std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
     bool guess_was_right = false;  // the last step's first guess solved it: try this one's residual alone first
   };
   MidpointWork mid_;
@@ -496,7 +558,8 @@ class World {
   const Row& r = rows_[k];
   const Body& A = bodies_[r.a];
   const Body& B = bodies_[r.b];
-  const Vec2 pa = state_[r.a].q * r.ra, pb = state_[r.b].q * r.rb;
+  Vec2 pa, pb;
+  row_levers(static_cast<size_t>(k), pa, pb);
   ua[k] = pa;
   ub[k] = pb;
   const double w = A.inv_mass + B.inv_mass, ia = A.inv_inertia, ib = B.inv_inertia;

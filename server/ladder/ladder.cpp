@@ -69,11 +69,12 @@ namespace {
 
 // Corner positions of block i in its own frame (origin at the centre), Figure 4: corners 0 and 1 on the right
 // edge, 0 at the bottom on even blocks and at the top on odd ones; c ^ 2 is across the width.
-// `half_width` is the hinge particles' distance from the centre line (thickness / 2 at the corners).
-Vec2 corner_local(int i, int c, double length, double half_width) {
+// `half_width` and `half_length` are the hinge particles' distances from the centre lines (thickness / 2 and
+// length / 2 at the corners; the arc centres of rounded ends, end_radius in from both edges, for rolling hinges).
+Vec2 corner_local(int i, int c, double half_length, double half_width) {
   const double x = (c & 2) ? -half_width : half_width;
   const bool low = ((c & 1) == 0) == (i % 2 == 0);
-  return {x, low ? -0.5 * length : 0.5 * length};
+  return {x, low ? -half_length : half_length};
 }
 
 // sigma = cross(e_c, w_c) of a block, from the numbering alone (it is +-1 whatever the inset): the lengthwise
@@ -110,31 +111,51 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
 
   require(std::isfinite(spec.hinge_inset) && spec.hinge_inset >= 0 && spec.hinge_inset < 0.5,
           "ladder.hinge_inset must be at least 0 and below 0.5");
+  require(std::isfinite(spec.end_radius) && spec.end_radius >= 0 && spec.end_radius <= 0.5 * spec.thickness,
+          "ladder.end_radius must be at least 0 and at most half of ladder.thickness");
+  require(spec.hinge == HingeKind::Rolling || spec.end_radius == 0,
+          "ladder.end_radius needs ladder.hinge = \"rolling\" (a corner hinge turns about the corner itself)");
+  require(spec.hinge == HingeKind::Corner || spec.hinge_inset == 0,
+          "ladder.hinge_inset is for corner hinges; a rolling hinge's pivot is set by ladder.end_radius");
   require(std::isfinite(spec.unlock_threshold) && spec.unlock_threshold >= 0, "ladder.unlock_threshold must be >= 0");
   require(std::isfinite(spec.capture_distance) && spec.capture_distance >= 0, "ladder.capture_distance must be >= 0");
-  const double L = spec.length, W = 2 * (0.5 - spec.hinge_inset) * spec.thickness;  // W: hinge-to-hinge width
+  // W, L: the hinge particles' spacing across and along the block (the corners, or a rolling hinge's arc centres,
+  // end_radius r in from both edges); r: the arcs' radius, 0 for corner hinges.
+  const double r = spec.end_radius;
+  const double L = spec.length - 2 * r, W = 2 * (0.5 - spec.hinge_inset) * spec.thickness - 2 * r;
   // Corner particles of mass m_c at (+-W/2, +-L/2) and the rest at the centre reproduce a uniform rectangle's
-  // inertia m (L^2 + T^2) / 12 (T the thickness) when 4 m_c (W^2 + L^2) / 4 = m (L^2 + T^2) / 12.
-  const double corner_share = (L * L + spec.thickness * spec.thickness) / (12 * (W * W + L * L));
+  // inertia m (length^2 + T^2) / 12 (T the thickness) when 4 m_c (W^2 + L^2) / 4 = m (length^2 + T^2) / 12.
+  const double corner_share =
+      (spec.length * spec.length + spec.thickness * spec.thickness) / (12 * (W * W + L * L));
+  require(4 * corner_share <= 1, "ladder.end_radius leaves the arc centres too close to the block's centre to carry "
+                                 "its moment of inertia (the block must be longer: length - 2 end_radius >= about "
+                                 "0.58 length)");
   // Lay the blocks out from the top, each hung by its hinge corner from the block above; then tilt the whole.
   const int n = spec.blocks;
+  // At rest every block's line from its upper pivot to its lower one is vertical (docs/model.md section 7): the
+  // corners' diagonal, or for rolling hinges, whose contacts lie straight below the arc centres while each pair's
+  // mean angle is zero, the line between its arc centres moved r up and down.
   const double lean = std::atan2(W, L);
   const bool hanging = spec.start == Start::Hanging && spec.top != Top::Free;
   const auto corner_of = [](int k) { return (k % 2 == 1) ? 0 : 3; };  // hinge k's corner in the initial state
   std::vector<Vec2> centre(static_cast<size_t>(n)), hinge(static_cast<size_t>(n), Vec2::Zero());
   std::vector<double> angle(static_cast<size_t>(n), 0.0);
   angle[0] = hanging && spec.top == Top::Pinned ? -lean : 0.0;
-  centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, L, 0.5 * W));  // top-left corner at the origin
+  centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, 0.5 * L, 0.5 * W));  // top-left corner (or arc) at the origin
   for (int k = 1; k < n; ++k) {
-    hinge[k] = centre[k - 1] + Rot::of(angle[k - 1]) * corner_local(k - 1, corner_of(k), L, 0.5 * W);
+    const Vec2 above = centre[k - 1] + Rot::of(angle[k - 1]) * corner_local(k - 1, corner_of(k), 0.5 * L, 0.5 * W);
     angle[k] = hanging ? (k % 2 == 1 ? lean : -lean) : 0.0;
-    centre[k] = hinge[k] - Rot::of(angle[k]) * corner_local(k, corner_of(k), L, 0.5 * W);
+    // A rolling pair's contact is r below the upper arc centre along the pair's mean angle (straight down when
+    // the pair is straight), and the lower arc centre r further on.
+    const Vec2 down = Rot::of(0.5 * (angle[k - 1] + angle[k])) * Vec2(0, -r);
+    hinge[k] = above + down;
+    centre[k] = above + 2 * down - Rot::of(angle[k]) * corner_local(k, corner_of(k), 0.5 * L, 0.5 * W);
   }
   const Rot tilt = Rot::of(spec.tilt);
   for (int i = 0; i < n; ++i) {
     const double m = spec.masses.empty() ? spec.mass : spec.masses[i];
     PartDef def;
-    for (int c = 0; c < 4; ++c) def.particles.push_back({m * corner_share, corner_local(i, c, L, 0.5 * W)});
+    for (int c = 0; c < 4; ++c) def.particles.push_back({m * corner_share, corner_local(i, c, 0.5 * L, 0.5 * W)});
     def.particles.push_back({m * (1 - 4 * corner_share), Vec2::Zero()});
     def.position = tilt * centre[i];
     def.angle = spec.tilt + angle[i];
@@ -167,7 +188,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     const int c = corner_of(k);
     hinges_[k] = {c, HingeStatus::Hinged, 0};
     set_measure_coef(k);
-    world_.connect(particle(k - 1, c), particle(k, c));
+    world_.connect(particle(k - 1, c), particle(k, c), roll_radius());
   }
   world_.finalize();
   set_options(options);
@@ -481,7 +502,7 @@ void Ladder::restructure(int k) {
       world_.separate(particle(k - 1, c), particle(k, c));  // the weld lets go
     }
     world_.separate(particle(k - 1, c), particle(k, c));                                  // Algorithm 2, line 1
-    removed += world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1)).energy_removed;  // lines 2-3
+    removed += world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1), roll_radius()).energy_removed;  // lines 2-3
     h.corner = c ^ 1;
     set_measure_coef(k);
     ++h.flips;
@@ -585,12 +606,15 @@ void Ladder::join_hinge(int k) {
     return;
   }
   const int pa = k == 0 ? world_particle_ : particle(k - 1, h.corner), pb = particle(k, h.corner);
-  const double gap = (world_.particle_position(pa) - world_.particle_position(pb)).norm();
+  // Rolling hinges: how far the two rounded ends are from touching (their arc centres 2 r apart).
+  const double radius = k == 0 ? 0.0 : roll_radius();
+  const double gap = std::abs((world_.particle_position(pa) - world_.particle_position(pb)).norm() - 2 * radius);
   if (gap > spec_.capture_distance)
-    throw std::invalid_argument("hinge " + std::to_string(k) + ": the corners are " + std::to_string(gap * 1e3) +
-                                " mm apart, more than the capture distance of " +
+    throw std::invalid_argument("hinge " + std::to_string(k) + ": the " +
+                                (radius > 0 ? std::string("rounded ends") : std::string("corners")) + " are " +
+                                std::to_string(gap * 1e3) + " mm apart, more than the capture distance of " +
                                 std::to_string(spec_.capture_distance * 1e3) + " mm");
-  const core::Restructure r = world_.combine(pa, pb);
+  const core::Restructure r = world_.combine(pa, pb, radius);
   h.status = HingeStatus::Hinged;
   emit(EventKind::Join, k, r.energy_removed);
 }

@@ -46,6 +46,11 @@ enum class Start { Hanging, Straight };
 // faces meet (perfectly inelastic for the whole face, a momentary weld), the pair stops folding at once and the
 // hinge moves; the impulses are still internal, so free bodies keep their linear and angular momentum.
 enum class FlipImpact { Face, Corner };
+// The hinge between two blocks. Corner: the paper's, two corner particles combined (a pin at the corner). Rolling: the
+// real toy's, rounded block ends (arcs of radius end_radius at each corner, centred end_radius in from both edges)
+// rolling on each other without slipping, the pivot at their contact point, where the tapes cross (docs/model.md
+// section 9); end_radius 0 is the corner hinge.
+enum class HingeKind { Corner, Rolling };
 
 struct LadderSpec {
   int blocks = 6;
@@ -65,6 +70,8 @@ struct LadderSpec {
   // toppling block lift the whole chain below it by up to the thickness, a potential well that deepens with the
   // number of blocks below (docs/model.md); an inset pivot shrinks it.
   double hinge_inset = 0;
+  HingeKind hinge = HingeKind::Corner;
+  double end_radius = 0;     // [m] rolling hinges: 0 to thickness / 2 (fully rounded ends)
   double kick_omega = 0;     // initial angular velocity of block 1 about its top hinge [rad/s]
   double tilt = 0;           // initial rotation of the whole column about its top-left corner [rad]
 };
@@ -133,6 +140,8 @@ class Ladder {
 
   // --- state ---
   const LadderSpec& spec() const { return spec_; }
+  // The arc radius of the hinges between blocks: end_radius for rolling hinges, 0 for corner ones.
+  double roll_radius() const { return spec_.hinge == HingeKind::Rolling ? spec_.end_radius : 0.0; }
   int blocks() const { return spec_.blocks; }
   double time() const { return world_.time(); }
   Vec2 block_centre(int i) const { return world_.part_position(i); }

@@ -80,6 +80,11 @@ constexpr std::array kKeys{
            .help = "a flip-flop's inelastic meeting: the whole face, or the far corners only (the paper's)"},
     KeyDef{.name = "ladder.hinge_inset", .kind = Kind::Number, .range = {0, 0.5, false, true},
            .help = "hinge distance in from the block's edge [fraction of the thickness]"},
+    KeyDef{.name = "ladder.hinge", .kind = Kind::Choice, .choices = "corner|rolling",
+           .help = "the paper's corner hinge, or the real toy's rolling hinge (rounded ends rolling on each other)"},
+    KeyDef{.name = "ladder.end_radius", .kind = Kind::Number, .range = at_least(0),
+           .help = "radius of the rounded block ends of a rolling hinge; 0 turns about the corner [m]",
+           .range_text = ">= 0 and <= ladder.thickness / 2; > 0 needs ladder.hinge = \"rolling\""},
     KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = above(0),
            .help = "time the hand takes to turn the top block over [s]"},
     KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
@@ -547,6 +552,24 @@ void read_blocks(const Reader& r, model::LadderSpec& l) {
   s.fail(*masses, message);
 }
 
+// The rolling hinge's keys against each other and the thickness, each error at the key that makes it.
+void check_hinge(const Reader& r, const model::LadderSpec& l) {
+  const auto fail_at = [&](std::string_view key, const std::string& message) {
+    if (const toml::node* n = r.find(key)) r.site(key).fail(*n, message);
+    throw SceneError(std::string(r.source()) + ": " + message);
+  };
+  if (l.end_radius > 0.5 * l.thickness)
+    fail_at(r.find("ladder.end_radius") ? "ladder.end_radius" : "ladder.thickness",
+            "ladder.end_radius must be at most half of ladder.thickness (got " + format_number(l.end_radius) +
+                " m with a thickness of " + format_number(l.thickness) + " m)");
+  if (l.end_radius > 0 && l.hinge != model::HingeKind::Rolling)
+    fail_at("ladder.end_radius", "ladder.end_radius needs ladder.hinge = \"rolling\" (a corner hinge turns about "
+                                 "the corner itself)");
+  if (l.hinge == model::HingeKind::Rolling && l.hinge_inset != 0)
+    fail_at("ladder.hinge_inset", "ladder.hinge_inset is for corner hinges; a rolling hinge's pivot is set by "
+                                  "ladder.end_radius");
+}
+
 void read_ladder(const Reader& r, model::LadderSpec& l) {
   using model::Start;
   using model::Top;
@@ -559,6 +582,9 @@ void read_ladder(const Reader& r, model::LadderSpec& l) {
   r.get("ladder.logic", l.logic);
   r.get("ladder.flip_impact", l.flip_impact, std::array{model::FlipImpact::Face, model::FlipImpact::Corner});
   r.get("ladder.hinge_inset", l.hinge_inset);
+  r.get("ladder.hinge", l.hinge, std::array{model::HingeKind::Corner, model::HingeKind::Rolling});
+  r.get("ladder.end_radius", l.end_radius);
+  check_hinge(r, l);
   r.get("ladder.tip_duration", l.tip_duration);
   r.get("ladder.unlock_threshold", l.unlock_threshold);
   r.get("ladder.capture_distance", l.capture_distance);
@@ -873,6 +899,8 @@ std::string live_settings(const Scene& s) {
   line("damping.angular", format_number(o.angular_damping));
   line("damping.hinge", format_number(o.hinge_friction));
   line("ladder.depth", format_number(s.depth));  // not live: carried here for the viewer, which draws it
+  line("ladder.hinge", s.ladder.hinge == model::HingeKind::Rolling ? "rolling" : "corner");  // likewise
+  line("ladder.end_radius", format_number(s.ladder.end_radius));
   return out;
 }
 

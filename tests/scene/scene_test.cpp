@@ -563,7 +563,7 @@ std::vector<std::string> help_keys() {
 
 TEST(Help, OneLinePerKey) {
   const auto keys = help_keys();
-  EXPECT_EQ(keys.size(), 40u);
+  EXPECT_EQ(keys.size(), 42u);
   EXPECT_EQ(keys.front(), "scene.name");
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
@@ -604,3 +604,31 @@ TEST(Values, FlipImpactChoice) {
     EXPECT_EQ(std::string(e.what()).rfind("<string>:2:15:", 0), 0u) << e.what();
   }
 }
+
+namespace ladder::scene {
+namespace {
+
+// The rolling hinge's keys: read, published with the settings for the viewer, and refused at the key that is wrong
+// (the radius against the thickness, a radius without a rolling hinge, an inset with one).
+TEST(Values, RollingHingeKeys) {
+  const Scene corner = parse_scene("", "<string>");
+  EXPECT_EQ(corner.ladder.hinge, model::HingeKind::Corner);
+  EXPECT_EQ(corner.ladder.end_radius, 0.0);
+  const Scene s = parse_scene("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 0.005\n", "<string>");
+  EXPECT_EQ(s.ladder.hinge, model::HingeKind::Rolling);
+  EXPECT_EQ(s.ladder.end_radius, 0.005);
+  EXPECT_NE(live_settings(s).find("\nladder.hinge=rolling\nladder.end_radius=0.005\n"), std::string::npos)
+      << live_settings(s);
+  expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 0.006\n", "<string>:4:14: ",
+               {"ladder.end_radius must be at most half of ladder.thickness (got 0.006 m with a thickness of 0.01 m)"});
+  expect_error("[ladder]\nend_radius = 0.001\n", "<string>:2:14: ", {"ladder.end_radius needs ladder.hinge = \"rolling\""});
+  expect_error("[ladder]\nhinge = \"rolling\"\nhinge_inset = 0.2\n", "<string>:3:15: ",
+               {"ladder.hinge_inset is for corner hinges"});
+  expect_error("[ladder]\nhinge = \"pivot\"\n", "<string>:2:9: ", {"ladder.hinge must be", "corner", "rolling"});
+  // A thickness given on the command line that leaves the file's radius too large is blamed on the radius.
+  expect_error("[ladder]\nhinge = \"rolling\"\nend_radius = 0.006\n", "<string>:3:14: ", {"at most half"},
+               {"ladder.thickness=0.01"});
+}
+
+}  // namespace
+}  // namespace ladder::scene
