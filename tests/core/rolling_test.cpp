@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <vector>
 
@@ -17,10 +18,10 @@ namespace {
 using test::kL, test::kW, test::kM;
 constexpr double kR = 0.004;  // arc radius [m], below kW / 2
 
-// A block whose four corner particles are its ends' arc centres, kR in from both edges (particle c as in
+// A block whose four corner particles are its ends' arc centres, r in from both edges (particle c as in
 // test::block: 0 bottom-right, 1 top-right, 2 bottom-left, 3 top-left), with the block's exact inertia.
-PartDef rounded_block(Vec2 centre, double angle, Vec2 v = Vec2::Zero(), double w = 0) {
-  const double hw = kW / 2 - kR, hl = kL / 2 - kR;
+PartDef rounded_block_r(Vec2 centre, double angle, double r, Vec2 v = Vec2::Zero(), double w = 0) {
+  const double hw = kW / 2 - r, hl = kL / 2 - r;
   const double corner = kM * (kL * kL + kW * kW) / (12 * (4 * hw * hw + 4 * hl * hl));
   PartDef d;
   for (int c = 0; c < 4; ++c) d.particles.push_back({corner, Vec2((c & 2) ? -hw : hw, (c & 1) ? hl : -hl)});
@@ -30,6 +31,9 @@ PartDef rounded_block(Vec2 centre, double angle, Vec2 v = Vec2::Zero(), double w
   d.velocity = v;
   d.omega = w;
   return d;
+}
+PartDef rounded_block(Vec2 centre, double angle, Vec2 v = Vec2::Zero(), double w = 0) {
+  return rounded_block_r(centre, angle, kR, v, w);
 }
 
 // Block b (dynamic) hangs from block a (kinematic, upright at the origin) by a rolling hinge on their right edges,
@@ -138,6 +142,106 @@ TEST(Rolling, MidpointLedgerClosesWithADrivenRollingHinge) {
   }
   EXPECT_GT(std::abs(total_work), 1e-4) << "the drive should do work on the hanging block";
   EXPECT_LT(worst, 1e-9);
+}
+
+}  // namespace
+}  // namespace ladder::core
+
+namespace ladder::core {
+namespace {
+
+// The dip of a toppling block's hanging point (docs/model.md section 9, "The well"): block B turns over about its
+// rolling contact with the block beside it, its bottom end's two arcs carrying that contact (side s) and the next
+// hinge (side -s), and a block C hangs from the next hinge. B is driven (kinematic) as the rolling contact makes it
+// move: turned by phi, its arc centre kR from the still neighbour's arc rolled around it by phi / 2. C is dynamic and
+// damped to rest at phi = 0 and again at phi = 90 degrees; the contact point of hinge B-C then drops by the
+// predicted dip, found from the geometry and C's equilibrium (its centre below the contact).
+struct Topple {
+  double r, T = kW, L = kL;
+  // B's pose at phi: its bottom-right arc centre rolled from (T/2 - r, r) around the neighbour's, at (T/2 + r, r).
+  Vec2 centre_b(double phi) const {
+    const Vec2 neighbour(T / 2 + r, r);
+    const Vec2 arc = neighbour + 2 * r * (Rot::of(0.5 * phi) * Vec2(-1, 0));
+    return arc - Rot::of(phi) * Vec2(T / 2 - r, -(L / 2 - r));
+  }
+  // The contact of hinge B-C with B at phi and C at theta: D (B's bottom-left arc centre) + r u, u from D toward C's
+  // top-left arc centre, u = R((phi + theta) / 2) (0, -1).
+  Vec2 contact(double phi, double theta, Vec2* c_centre = nullptr) const {
+    const Vec2 d = centre_b(phi) + Rot::of(phi) * Vec2(-(T / 2 - r), -(L / 2 - r));
+    const Vec2 u = Rot::of(0.5 * (phi + theta)) * Vec2(0, -1);
+    if (c_centre) *c_centre = d + 2 * r * u - Rot::of(theta) * Vec2(-(T / 2 - r), L / 2 - r);
+    return d + r * u;
+  }
+  // C at rest hangs with its centre straight below the contact: theta by Newton's method on that condition.
+  double equilibrium(double phi) const {
+    double theta = 0;
+    for (int i = 0; i < 60; ++i) {
+      const auto f = [&](double th) {
+        Vec2 c;
+        const Vec2 p = contact(phi, th, &c);
+        return c.x() - p.x();
+      };
+      const double e = 1e-7, fx = f(theta), df = (f(theta + e) - f(theta - e)) / (2 * e);
+      theta -= fx / df;
+    }
+    return theta;
+  }
+  double predicted_dip(double phi) const {
+    return contact(0, equilibrium(0)).y() - contact(phi, equilibrium(phi)).y();
+  }
+};
+
+double measured_dip(double r, double phi_end) {
+  const Topple g{r};
+  Options o;
+  o.linear_damping = 40;
+  o.angular_damping = 40;
+  World world(o);
+  // The drive: still for 2 s, then phi from 0 to phi_end by a smoothstep over 2 s, then still again.
+  const auto phi_at = [phi_end](double t) {
+    const double u = std::clamp((t - 2) / 2, 0.0, 1.0);
+    return phi_end * u * u * u * (10 - 15 * u + 6 * u * u);
+  };
+  PartDef b = rounded_block_r(g.centre_b(0), 0, r);
+  b.kinematic = true;
+  const int pb = world.add_part(b);
+  world.set_drive(pb, [&g, phi_at](double t) {
+    Kinematics k;
+    const double phi = phi_at(t), e = 1e-6;
+    k.theta = phi;
+    k.x = g.centre_b(phi);
+    // Velocities by central differences: the drive is smooth, and the test reads positions at rest only.
+    k.v = (g.centre_b(phi_at(t + e)) - g.centre_b(phi_at(t - e))) / (2 * e);
+    k.omega = (phi_at(t + e) - phi_at(t - e)) / (2 * e);
+    return k;
+  });
+  Vec2 c_centre;
+  g.contact(0, 0, &c_centre);
+  const int pc = world.add_part(rounded_block_r(c_centre, 0, r));
+  // B's bottom-left arc (particle 2) on C's top-left arc (particle 3).
+  world.connect(world.first_particle(pb) + 2, world.first_particle(pc) + 3, r);
+  world.finalize();
+  const auto contact_y = [&] {
+    return 0.5 * (world.particle_position(world.first_particle(pb) + 2) +
+                  world.particle_position(world.first_particle(pc) + 3)).y();
+  };
+  for (int i = 0; i < 2000; ++i) world.step(1e-3);
+  const double y0 = contact_y();
+  for (int i = 0; i < 8000; ++i) world.step(1e-3);
+  EXPECT_LT(world.kinetic_energy(), 1e-15) << "not at rest";
+  return y0 - contact_y();
+}
+
+TEST(Rolling, ToppleDipsAsTheGeometryPredicts) {
+  for (const double r : {0.0, 0.0025, kW / 2}) {
+    const Topple g{r};
+    const double predicted = g.predicted_dip(std::numbers::pi / 2);
+    EXPECT_NEAR(measured_dip(r, std::numbers::pi / 2), predicted, 1e-9) << "r = " << r;
+    if (r == 0) {
+      EXPECT_NEAR(predicted, kW, 1e-12);  // the corner hinge: the other corner drops by the thickness
+    }
+    std::printf("r = %.4f m: dip at 90 degrees %.9f m (%.4f of the thickness)\n", r, predicted, predicted / kW);
+  }
 }
 
 }  // namespace
