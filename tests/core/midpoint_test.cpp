@@ -176,8 +176,15 @@ void expect_no_energy_trend(int n, int steps) {
   EXPECT_LT(world.max_hinge_error(), 1e-10);
 }
 
+// A million steps each, as the issue asks. Under AddressSanitizer (scripts/test --sanitize, which looks for memory
+// errors, not for drift) the long chain takes 1e5: a million would take half an hour there.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr int kLongChainSteps = 100000;
+#else
+constexpr int kLongChainSteps = 1000000;
+#endif
 TEST(Midpoint, NoSecularEnergyTrendOnAShortChain) { expect_no_energy_trend(2, 1000000); }
-TEST(Midpoint, NoSecularEnergyTrendOnALongChain) { expect_no_energy_trend(100, 100000); }
+TEST(Midpoint, NoSecularEnergyTrendOnALongChain) { expect_no_energy_trend(100, kLongChainSteps); }
 
 // The ledger on a driven, damped chain: a hand moving the top block's pin on a circle, linear and angular damping,
 // hinge friction and a user's push. Each step E(t + h) - E(t) = work - dissipated within 1e-9 J.
