@@ -97,7 +97,7 @@ Rgb face_colour(int block);  // the wide face's
 Rgb side_colour(int block);  // the narrow side's: what the side view shows
 
 // A block's depth [m]: the scene's ladder.depth (SceneInfo's options), else the scene's default. (A replay's SceneInfo
-// has no options: it is drawn at the default depth.)
+// carries the scene's fixed ladder.* keys too: ladderctl replay makes the recorded scene again to know them.)
 inline constexpr double kDefaultDepth = 0.045;
 double depth_of(const client::SceneInfo& info);
 // The radius [m] of the arcs that round a block's corners: the scene's ladder.end_radius when its ladder.hinge is
