@@ -113,7 +113,7 @@ struct View {
       : cam(c), info(i), rot(c.yaw, c.pitch), depth(depth_of(i)),
         radius_px(0.5 * std::sqrt(i.length * i.length + i.thickness * i.thickness + depth * depth) * c.scale),
         length_px(i.length * c.scale), r(end_radius_of(i)),
-        segments(std::clamp(static_cast<int>(std::ceil(0.8 * std::sqrt(2 * r * c.scale))), 2, 24)) {}
+        segments(static_cast<int>(std::clamp(std::ceil(0.8 * std::sqrt(2 * r * c.scale)), 2.0, 24.0))) {}
 
   bool visible(const client::Pose& p) const {
     const Point s = cam.to_screen({p.x, p.y});
@@ -520,7 +520,8 @@ double end_radius_of(const client::SceneInfo& info) {
   const double r = std::strtod(text, &end);
   // The server holds r within [0, thickness / 2]; a SceneInfo from elsewhere is held there too (the options print
   // r to three digits, which may put a fully rounded end a hair past half the thickness).
-  return end != text && std::isfinite(r) && r > 0 ? std::min(r, 0.5 * info.thickness) : 0;
+  if (end == text || !std::isfinite(r) || !(r > 0) || !(info.thickness > 0)) return 0;
+  return std::min(r, 0.5 * info.thickness);
 }
 
 std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose) {

@@ -26,16 +26,15 @@ struct EndHinge {
 // The block's hinges that carry tapes (not broken), with their contact points. The contact is the pivot, halfway
 // between the two blocks' arc centres; seen from this block's arc centre, its direction gives the place on the arc.
 // A pair bent past the arc's ends (a forged state) has it clamped to them.
-int end_hinges(const client::SceneInfo& info, const client::State& s, int block, EndHinge out[2]) {
+int end_hinges(const client::SceneInfo& info, const client::State& s, int block, double r, EndHinge out[2]) {
   const int n = static_cast<int>(std::min(s.blocks.size(), s.hinges.size()));
   int count = 0;
   for (const int k : {block, block + 1}) {
     if (k < 1 || k >= n || s.hinges[static_cast<std::size_t>(k)].status == ladder_msg_BROKEN) continue;
     const int c = s.hinges[static_cast<std::size_t>(k)].corner;
-    const Point centre = to_block_frame(s.blocks[static_cast<std::size_t>(block)],
-                                        hinge_particle(info, block, c, s.blocks[static_cast<std::size_t>(block)]));
-    const Point p = to_block_frame(s.blocks[static_cast<std::size_t>(block)], pivot(info, s, k));
     const int side = side_of(c), end = end_of(block, c);
+    const Point centre{side * (0.5 * info.thickness - r), end * (0.5 * info.length - r)};
+    const Point p = to_block_frame(s.blocks[static_cast<std::size_t>(block)], pivot(info, r, s, k));
     // The angle from the wide face's normal (side, 0) toward the end's (0, end).
     const double a = std::atan2(end * (p.y - centre.y), side * (p.x - centre.x));
     out[count++] = {k, k == block ? block - 1 : block + 1, side, end, std::clamp(a / (0.5 * M_PI), 0.0, 1.0)};
@@ -61,7 +60,7 @@ void rounded_outline(const client::SceneInfo& info, const client::State& state, 
   out.clear();
   const double hw = 0.5 * info.thickness, hl = 0.5 * info.length;
   EndHinge hinges[2];
-  const int nh = end_hinges(info, state, block, hinges);
+  const int nh = end_hinges(info, state, block, r, hinges);
   // Whose tapes lie at fraction u (0 at the wide face, 1 at the end) of the arc at corner (sx, sy): a hinge's own
   // up to its contact point, the other block's beyond it; at the end's other corner, the other block's.
   const auto arc_tapes = [&](int sx, int sy, double u, Facet& f) {
