@@ -1,10 +1,13 @@
 #include "draw.hpp"
 
+#include "rounded.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <string_view>
 #include <utility>
 
 namespace ladder::view {
@@ -103,11 +106,14 @@ struct View {
   double depth;      // [m] of a block
   double radius_px;  // bounding sphere of a block
   double length_px;  // a block's length on screen
+  double r;          // [m] the rounded ends' radius; 0: square corners (boxes)
+  int segments;      // facets to a quarter arc: the chord strays from the arc by at most about 0.3 px
 
   View(const Camera& c, const client::SceneInfo& i)
       : cam(c), info(i), rot(c.yaw, c.pitch), depth(depth_of(i)),
         radius_px(0.5 * std::sqrt(i.length * i.length + i.thickness * i.thickness + depth * depth) * c.scale),
-        length_px(i.length * c.scale) {}
+        length_px(i.length * c.scale), r(end_radius_of(i)),
+        segments(static_cast<int>(std::clamp(std::ceil(0.8 * std::sqrt(2 * r * c.scale)), 2.0, 24.0))) {}
 
   bool visible(const client::Pose& p) const {
     const Point s = cam.to_screen({p.x, p.y});
@@ -152,6 +158,120 @@ void draw_tapes(cairo_t* cr, const View& v, const Box& b, int sign, int hinge, i
   }
   set_colour(cr, kRibbon);
   cairo_fill(cr);
+}
+
+// Calls run(first, count) for each run of consecutive facets (round the closed outline) with the same key(facet).
+template <typename Key, typename Run>
+void for_each_run(const std::vector<Facet>& f, Key key, Run run) {
+  const std::size_t n = f.size();
+  std::size_t start = 0;  // a facet whose key differs from the one before it, so that no run wraps past the start
+  while (start < n && key(f[start]) == key(f[(start + n - 1) % n])) ++start;
+  if (start == n) {  // one key all round
+    if (n) run(0, n);
+    return;
+  }
+  for (std::size_t k = 0; k < n;) {
+    std::size_t len = 1;
+    while (len < n - k && key(f[(start + k + len) % n]) == key(f[(start + k) % n])) ++len;
+    run((start + k) % n, len);
+    k += len;
+  }
+}
+
+// A band across the depth, from z0 to z1, over `count` facets from `first`: the outline's points at z0 forward,
+// then at z1 back.
+void band(cairo_t* cr, const View& v, const Box& b, const std::vector<Facet>& f, std::size_t first, std::size_t count,
+          double z0, double z1) {
+  const std::size_t n = f.size();
+  const auto at = [&](Point p, double z) { return v.screen(b.local_to_world({p.x, p.y, z})); };
+  Point p = at(f[first].a, z0);
+  cairo_move_to(cr, p.x, p.y);
+  for (std::size_t k = 0; k < count; ++k) {
+    p = at(f[(first + k) % n].b, z0);
+    cairo_line_to(cr, p.x, p.y);
+  }
+  for (std::size_t k = count; k-- > 0;) {
+    p = at(f[(first + k) % n].b, z1);
+    cairo_line_to(cr, p.x, p.y);
+  }
+  p = at(f[first].a, z1);
+  cairo_line_to(cr, p.x, p.y);
+  cairo_close_path(cr);
+}
+
+// A block with rounded ends: the narrow side toward the viewer (the whole outline), the facets round the outline
+// that face the viewer, consecutive ones of one colour filled as one polygon (Cairo's antialiasing would leave a
+// seam between two fills), then the tapes on them. A rounded box is convex: what faces the viewer never overlaps.
+void draw_rounded_block(cairo_t* cr, const View& v, const client::State& s, int i, bool tapes,
+                        std::vector<Facet>& facets) {
+  const Box b = v.block(s.blocks[static_cast<std::size_t>(i)]);
+  rounded_outline(v.info, s, i, v.r, v.segments, facets);
+  for (const int sz : {1, -1}) {
+    if (v.towards_viewer({0, 0, double(sz)}) <= 1e-9) continue;
+    for (std::size_t k = 0; k < facets.size(); ++k) {
+      const Point p = v.screen(b.local_to_world({facets[k].a.x, facets[k].a.y, sz * b.half.z}));
+      k ? cairo_line_to(cr, p.x, p.y) : cairo_move_to(cr, p.x, p.y);
+    }
+    cairo_close_path(cr);
+    set_colour(cr, side_colour(i));
+    cairo_fill(cr);
+  }
+  const auto seen = [&](const Facet& f) {
+    const Point n = rotate(b.theta, f.normal);
+    return v.towards_viewer({n.x, n.y, 0}) > 1e-9;
+  };
+  for_each_run(facets, [&](const Facet& f) { return seen(f) ? (f.wide ? 1 : 2) : 0; },
+               [&](std::size_t first, std::size_t count) {
+                 if (!seen(facets[first])) return;
+                 band(cr, v, b, facets, first, count, -b.half.z, b.half.z);
+                 set_colour(cr, facets[first].wide ? face_colour(i) : kDepth);
+                 cairo_fill(cr);
+               });
+  if (!tapes) return;
+  // Runs of one set of tapes across the depth (a central one, or the outer pair), whosever they are: a tape that goes
+  // on from one hinge's piece to another's is one polygon, with no seam.
+  const auto tapes_key = [&](const Facet& f) {
+    return f.hinge >= 0 && seen(f) ? static_cast<int>(tape_centres(f.hinge, f.owner).size()) : 0;
+  };
+  for_each_run(facets, tapes_key,
+               [&](std::size_t first, std::size_t count) {
+                 const Facet& f = facets[first];
+                 if (f.hinge < 0 || !seen(f)) return;
+                 for (const double zc : tape_centres(f.hinge, f.owner))
+                   band(cr, v, b, facets, first, count, (zc - 0.5 * kTapeWidth) * v.depth,
+                        (zc + 0.5 * kTapeWidth) * v.depth);
+                 set_colour(cr, kRibbon);
+                 cairo_fill(cr);
+               });
+}
+
+// The side view of rounded blocks: their wide faces, and the tapes on them, are edge-on. The tapes are drawn as
+// lines along the outline, so that the figure-8 they make at each contact point shows as the paper's side view
+// would draw it. After every block, so that no block covers the tapes crossing onto it.
+void draw_tape_lines(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown,
+                     std::vector<Facet>& facets) {
+  const double front = 0.5 * v.depth;
+  cairo_set_line_width(cr, std::clamp(0.06 * v.info.thickness * v.cam.scale, 1.5, 3.0));
+  cairo_set_line_join(cr, CAIRO_LINE_JOIN_ROUND);
+  cairo_set_line_cap(cr, CAIRO_LINE_CAP_BUTT);
+  for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+    if (!shown[i]) continue;
+    const Box b = v.block(s.blocks[i]);
+    rounded_outline(v.info, s, static_cast<int>(i), v.r, v.segments, facets);
+    for_each_run(facets, [](const Facet& f) { return f.hinge >= 0; },
+                 [&](std::size_t first, std::size_t count) {
+                   if (facets[first].hinge < 0) return;
+                   Point p = v.screen(b.local_to_world({facets[first].a.x, facets[first].a.y, front}));
+                   cairo_move_to(cr, p.x, p.y);
+                   for (std::size_t k = 0; k < count; ++k) {
+                     const Facet& f = facets[(first + k) % facets.size()];
+                     p = v.screen(b.local_to_world({f.b.x, f.b.y, front}));
+                     cairo_line_to(cr, p.x, p.y);
+                   }
+                 });
+  }
+  set_colour(cr, kRibbon);
+  cairo_stroke(cr);
 }
 
 // One block: its faces that face the viewer (a box's never overlap on screen), the tapes on its wide faces.
@@ -205,10 +325,11 @@ void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::
     if (!(shown[k - 1] || shown[k])) continue;
     const client::Hinge& h = s.hinges[k];
     const int ki = static_cast<int>(k);
-    const Point p2 = hinge_particle(v.info, ki, h.corner, s.blocks[k]);
+    const Point p2 = h.status == ladder_msg_BROKEN ? hinge_particle(v.info, v.r, ki, h.corner, s.blocks[k])
+                                                   : pivot(v.info, v.r, s, ki);
     const Point p = v.screen({p2.x, p2.y, front}), back = v.screen({p2.x, p2.y, -front});
     if (h.status == ladder_msg_BROKEN) {
-      const Point q2 = hinge_particle(v.info, ki - 1, h.corner, s.blocks[k - 1]);
+      const Point q2 = hinge_particle(v.info, v.r, ki - 1, h.corner, s.blocks[k - 1]);
       set_colour(cr, kBroken);
       cairo_set_line_width(cr, 1.5);
       for (const Point& x : {p, v.screen({q2.x, q2.y, front})}) {
@@ -371,16 +492,36 @@ void Camera::pan(Point a, Point b) {
 Rgb face_colour(int block) { return block % 2 == 0 ? kFaceEven : kFaceOdd; }
 Rgb side_colour(int block) { return block % 2 == 0 ? kSideEven : kSideOdd; }
 
+namespace {
+// The text after "key=" on its line of SceneInfo's options, or null.
+const char* option(const client::SceneInfo& info, const std::string& key) {
+  const std::string k = key + "=";
+  const std::size_t at = info.options.starts_with(k) ? 0 : info.options.find("\n" + k);
+  return at == std::string::npos ? nullptr : info.options.c_str() + at + (at == 0 ? 0 : 1) + k.size();
+}
+}  // namespace
+
 double depth_of(const client::SceneInfo& info) {
-  const std::string key = "ladder.depth=";
-  const std::size_t at = info.options.starts_with(key) ? 0 : info.options.find("\n" + key);
-  if (at != std::string::npos) {
-    const char* text = info.options.c_str() + at + (at == 0 ? 0 : 1) + key.size();
+  if (const char* text = option(info, "ladder.depth")) {
     char* end = nullptr;
     const double d = std::strtod(text, &end);
     if (end != text && std::isfinite(d) && d > 0) return d;
   }
   return kDefaultDepth;
+}
+
+double end_radius_of(const client::SceneInfo& info) {
+  const char* hinge = option(info, "ladder.hinge");
+  const char* text = option(info, "ladder.end_radius");
+  if (!hinge || !text) return 0;
+  const std::string_view kind(hinge);
+  if (kind.substr(0, kind.find('\n')) != "rolling") return 0;
+  char* end = nullptr;
+  const double r = std::strtod(text, &end);
+  // The server holds r within [0, thickness / 2]; a SceneInfo from elsewhere is held there too (the options print
+  // r to three digits, which may put a fully rounded end a hair past half the thickness).
+  if (end == text || !std::isfinite(r) || !(r > 0) || !(info.thickness > 0)) return 0;
+  return std::min(r, 0.5 * info.thickness);
 }
 
 std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose) {
@@ -394,10 +535,30 @@ std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& 
 }
 
 Point hinge_particle(const client::SceneInfo& info, int block, int c, const client::Pose& pose) {
-  const double w = (0.5 - info.hinge_inset) * info.thickness;
+  return hinge_particle(info, end_radius_of(info), block, c, pose);
+}
+
+Point hinge_particle(const client::SceneInfo& info, double r, int block, int c, const client::Pose& pose) {
+  // As the core places them (server/ladder/ladder.cpp, corner_local): the corners, or the arc centres r in from
+  // both edges.
+  const double w = (0.5 - info.hinge_inset) * info.thickness - r, l = 0.5 * info.length - r;
   const bool low = ((c & 1) == 0) == (block % 2 == 0);
-  const Point r = rotate(pose.theta, {(c & 2) ? -w : w, low ? -0.5 * info.length : 0.5 * info.length});
-  return {pose.x + r.x, pose.y + r.y};
+  const Point q = rotate(pose.theta, {(c & 2) ? -w : w, low ? -l : l});
+  return {pose.x + q.x, pose.y + q.y};
+}
+
+Point pivot(const client::SceneInfo& info, const client::State& state, int hinge) {
+  return pivot(info, end_radius_of(info), state, hinge);
+}
+
+Point pivot(const client::SceneInfo& info, double r, const client::State& state, int hinge) {
+  const auto k = static_cast<std::size_t>(hinge);
+  const int c = state.hinges[k].corner;
+  const Point below = hinge_particle(info, r, hinge, c, state.blocks[k]);
+  if (r <= 0) return below;  // the two blocks' corners are one point: the one always drawn
+  // Two equal arcs touching: their contact is halfway between their centres.
+  const Point above = hinge_particle(info, r, hinge - 1, c, state.blocks[k - 1]);
+  return {0.5 * (above.x + below.x), 0.5 * (above.y + below.y)};
 }
 
 Point to_block_frame(const client::Pose& pose, Point world) {
@@ -405,11 +566,10 @@ Point to_block_frame(const client::Pose& pose, Point world) {
 }
 
 int block_at(const client::SceneInfo& info, const client::State& state, Point world) {
+  const double r = end_radius_of(info);
   int found = -1;
-  for (std::size_t i = 0; i < state.blocks.size(); ++i) {
-    const Point l = to_block_frame(state.blocks[i], world);
-    if (std::abs(l.x) <= 0.5 * info.thickness && std::abs(l.y) <= 0.5 * info.length) found = static_cast<int>(i);
-  }
+  for (std::size_t i = 0; i < state.blocks.size(); ++i)
+    if (in_rounded_outline(info, r, to_block_frame(state.blocks[i], world))) found = static_cast<int>(i);
   return found;
 }
 
@@ -435,6 +595,7 @@ Pick pick(const Camera& cam, const client::SceneInfo& info, const client::State&
   const Vec3 o0 = r.inverse({vx, vy, 0}), u = r.inverse({0, 0, 1});
   const Vec3 o{cam.cx + o0.x, cam.cy + o0.y, o0.z};
   const double half[3] = {0.5 * info.thickness, 0.5 * info.length, 0.5 * depth_of(info)};
+  const double radius = end_radius_of(info);
   Pick best;
   double best_t = -std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {
@@ -442,7 +603,8 @@ Pick pick(const Camera& cam, const client::SceneInfo& info, const client::State&
     const Point lo = rotate(-p.theta, {o.x - p.x, o.y - p.y}), lu = rotate(-p.theta, {u.x, u.y});
     const double origin[3] = {lo.x, lo.y, o.z}, dir[3] = {lu.x, lu.y, u.z};
     double t0 = -std::numeric_limits<double>::infinity(), t1 = std::numeric_limits<double>::infinity();
-    for (int a = 0; a < 3 && t0 <= t1; ++a) {
+    // A box: three slabs. With rounded ends: the slab across the depth, then the rounded outline in the block's plane.
+    for (int a = radius > 0 ? 2 : 0; a < 3 && t0 <= t1; ++a) {
       if (std::abs(dir[a]) < 1e-12) {
         if (std::abs(origin[a]) > half[a]) t0 = std::numeric_limits<double>::infinity();
         continue;
@@ -452,9 +614,14 @@ Pick pick(const Camera& cam, const client::SceneInfo& info, const client::State&
       t0 = std::max(t0, ta);
       t1 = std::min(t1, tb);
     }
+    if (double a = 0, b = 0; radius > 0 && t0 <= t1) {
+      if (!rounded_interval(info, radius, lo, lu, a, b)) continue;
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+    }
     if (t0 > t1 || t1 <= best_t) continue;
     best_t = t1;
-    const double mid = 0.5 * (t0 + t1);  // inside the box: a point of the block's rectangle
+    const double mid = 0.5 * (t0 + t1);  // inside the (rounded) box: a point of the block's outline
     best = {static_cast<int>(i), {o.x + mid * u.x, o.y + mid * u.y}};
   }
   return best;
@@ -524,8 +691,16 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
     for (std::size_t i = 0; i < state.blocks.size(); ++i)
       if (shown[i]) order.emplace_back(v.view_depth({state.blocks[i].x, state.blocks[i].y, 0}), static_cast<int>(i));
     std::sort(order.begin(), order.end());
-    for (const auto& [depth, i] : order) draw_block(cr, v, state, i, v.length_px >= 12);
+    // Square corners keep the plain box: the pictures of corner-hinge scenes stay what they were, and cost less.
+    std::vector<Facet> facets;  // one block's rounded outline at a time
+    for (const auto& [depth, i] : order) {
+      if (v.r > 0)
+        draw_rounded_block(cr, v, state, i, v.length_px >= 12, facets);
+      else
+        draw_block(cr, v, state, i, v.length_px >= 12);
+    }
     drawn = static_cast<int>(order.size());
+    if (v.r > 0 && camera.side() && v.length_px >= 12) draw_tape_lines(cr, v, state, shown, facets);
     if (info.top == "held" && !state.blocks.empty() && shown[0]) draw_hand(cr, v, state.blocks[0]);
     if (v.length_px >= 12) draw_hinges(cr, v, state, shown);
     if (hud.numbers && v.length_px >= 12) draw_numbers(cr, v, state, shown);

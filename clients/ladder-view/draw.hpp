@@ -11,6 +11,11 @@
 // z = 0: a wooden box whose two wide faces (length x depth, normal +-x) carry the ribbons, whose narrow sides
 // (length x thickness, normal +-z) are what the side view sees, and whose ends (thickness x depth) meet at the
 // hinges.
+//
+// Rolling hinges (SceneInfo's options say ladder.hinge=rolling, with ladder.end_radius r > 0; docs/model.md section
+// 9): each corner of a block is an arc of radius r centred r in from both edges (r = thickness / 2: a fully rounded
+// end), the hinge particles sit at the arc centres, and two hinged blocks turn about the contact of their arcs,
+// halfway between their arc centres: where the tapes cross (rounded.hpp).
 #pragma once
 
 #include "client.hpp"
@@ -92,16 +97,28 @@ Rgb face_colour(int block);  // the wide face's
 Rgb side_colour(int block);  // the narrow side's: what the side view shows
 
 // A block's depth [m]: the scene's ladder.depth (SceneInfo's options), else the scene's default. (A replay's SceneInfo
-// has no options: it is drawn at the default depth.)
+// carries the scene's fixed ladder.* keys too: ladderctl replay makes the recorded scene again to know them.)
 inline constexpr double kDefaultDepth = 0.045;
 double depth_of(const client::SceneInfo& info);
+// The radius [m] of the arcs that round a block's corners: the scene's ladder.end_radius when its ladder.hinge is
+// "rolling" (within 0 and half the thickness), else 0: the paper's square corners.
+double end_radius_of(const client::SceneInfo& info);
 
 // Block geometry in world coordinates.
-std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose);  // counter-clockwise
+// The block's rectangle, counter-clockwise (its corners square: with rolling hinges they are rounded, rounded.hpp).
+std::array<Point, 4> outline(const client::SceneInfo& info, const client::Pose& pose);
+// Hinge particle c of a block: its corner, or with rounded ends the centre of the corner's arc. The second form
+// takes end_radius_of(info), read once for a loop over many blocks.
 Point hinge_particle(const client::SceneInfo& info, int block, int c, const client::Pose& pose);
+Point hinge_particle(const client::SceneInfo& info, double r, int block, int c, const client::Pose& pose);
+// Where hinge k (1 <= k < the blocks) turns: its particle on block k (for a corner hinge the two blocks' particles
+// coincide), or for a rolling hinge the contact of the two arcs, halfway between the two blocks' arc centres.
+Point pivot(const client::SceneInfo& info, const client::State& state, int hinge);
+Point pivot(const client::SceneInfo& info, double r, const client::State& state, int hinge);
 Point to_block_frame(const client::Pose& pose, Point world);
-// The block whose rectangle contains the world point (the highest-numbered one where two overlap), or -1.
-// Scans every block, O(blocks): about 0.1 ms for 100 000, once per click.
+// The block whose outline (its rectangle, with rounded corners for rolling hinges) contains the world point (the
+// highest-numbered one where two overlap), or -1. Scans every block, O(blocks): about 0.1 ms for 100 000, once per
+// click.
 int block_at(const client::SceneInfo& info, const client::State& state, Point world);
 
 // The ribbons (tapes) as on the real toy: hinge k's tapes run along the wide face on its hinge's side (c & 2) of
@@ -116,8 +133,9 @@ int tapes_on(const client::State& state, int block, int sign);
 std::vector<double> tape_centres(int hinge, int block);
 inline constexpr double kTapeWidth = 0.16;  // [fraction of the depth]
 
-// The block under screen point s, and the point of it there (its x, y: on the block's rectangle), or block -1.
-// Casts the ray through s against every block's box, O(blocks).
+// The block under screen point s, and the point of it there (its x, y: in the block's outline), or block -1.
+// Casts the ray through s against every block's box (with rounded ends, the box with its corners rounded: a click
+// on a cut-off corner finds what is behind it), O(blocks).
 struct Pick {
   int block = -1;
   Point world;
@@ -137,8 +155,10 @@ struct Hud {
 };
 
 // Draws everything: background, blocks as boxes (back to front) with their ribbons, the hand on a held top block,
-// hinges (locked and broken ones marked), grips, numbers, scale bar, HUD. Draws only what is on screen; returns how
-// many blocks it drew.
+// hinges (locked and broken ones marked, each at its pivot), grips, numbers, scale bar, HUD. Rolling-hinge blocks
+// have their corners rounded, and their tapes wrap the rounded ends and cross at each contact point (rounded.hpp);
+// in the side view, where the wide faces are edge-on, their tapes are drawn as lines along the outline. Draws only
+// what is on screen; returns how many blocks it drew.
 int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const client::State& state, const Hud& hud);
 // Background and HUD only (no state yet).
 void draw_empty(cairo_t* cr, const Camera& camera, const Hud& hud);

@@ -139,7 +139,7 @@ class Viewer {
     if (flips_.size() == s.hinges.size()) {
       for (std::size_t k = s.hinges.size(); k-- > 1;)
         if (s.hinges[k].flips != flips_[k] && k < s.blocks.size()) {
-          ripple_ = hinge_particle(info, static_cast<int>(k), s.hinges[k].corner, s.blocks[k]);
+          ripple_ = pivot(info, s, static_cast<int>(k));
           break;
         }
     }

@@ -3,6 +3,7 @@
 #include "ladderlcm/event_t.hpp"
 #include "ladderlcm/scene_t.hpp"
 #include "ladderlcm/state_t.hpp"
+#include "scene/scene.hpp"
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
@@ -15,6 +16,7 @@
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -24,6 +26,20 @@ namespace {
 
 using transport::copy_text;
 std::atomic<bool> g_stop{false};
+
+// What a viewer draws that a scene record has no field of its own for (ladder.depth, ladder.hinge,
+// ladder.end_radius): the scene made again from the record's text and overrides, as the re-run makes it, and its
+// settings put in SceneInfo's options as the live server puts them. Only the keys that are fixed for a scene: the
+// live ones (sim.*, solver.*, damping.*) may have been set since the text was recorded. Throws scene::SceneError
+// when the text does not make a scene in this build.
+std::string fixed_settings(const ladderlcm::scene_t& s) {
+  const scene::Scene sc = scene::remake_scene(s.toml, s.source, s.overrides, s.clear_timeline);
+  std::istringstream lines(scene::live_settings(sc));
+  std::string out;
+  for (std::string line; std::getline(lines, line);)
+    if (!scene::is_live_key(line.substr(0, line.find('=')))) out += line + "\n";
+  return out;
+}
 extern "C" void on_stop(int) { g_stop = true; }
 
 class Publisher {
@@ -37,7 +53,8 @@ class Publisher {
         state_w_(participant_, topics_.state, transport::Profile::State),
         event_w_(participant_, topics_.event, transport::Profile::Event) {}
 
-  void scene(const ladderlcm::scene_t& s) {
+  // Publishes a scene record; `options` as fixed_settings() made them ("" if the scene did not build).
+  void scene(const ladderlcm::scene_t& s, const std::string& options) {
     ladder_msg_SceneInfo m{};
     copy_text(m.sim_id, sim_id_);
     m.generation = static_cast<std::uint32_t>(s.generation);
@@ -52,6 +69,7 @@ class Publisher {
     transport::lend(m.masses, s.masses);
     copy_text(m.top, s.top);
     m.dt = s.dt;
+    copy_text(m.options, options);
     scene_w_.write(m);
   }
 
@@ -168,6 +186,10 @@ int replay(const ReplayOptions& o) {
   std::uint64_t states = 0, events = 0, bad_states = 0;
   double last_t = 0;
   std::map<std::int32_t, std::int32_t> blocks;  // of each generation whose scene record has come
+  // The last scene record's text and what it made: a live setting's record repeats its generation's text.
+  std::string made_from, options;
+  std::vector<std::string> made_with;
+  bool tried = false;
   int rc = 0;
   try {
     while (!g_stop) {
@@ -180,7 +202,20 @@ int replay(const ReplayOptions& o) {
           reader->refuse(*e, "scene_t", "generation " + std::to_string(s.generation) + " has " +
                                             std::to_string(s.blocks) + " blocks here, " + std::to_string(b->second) +
                                             " in its first scene record");
-        out.scene(s);  // always, so a viewer knows what it sees
+        if (!tried || s.toml != made_from || s.overrides != made_with) {
+          tried = true;
+          made_from = s.toml;
+          made_with = s.overrides;
+          try {
+            options = fixed_settings(s);
+          } catch (const std::exception& ex) {
+            options.clear();
+            std::cerr << "ladderctl: " << o.log << ": the scene of generation " << s.generation
+                      << " does not build here (" << ex.what()
+                      << "); viewers draw it at the default depth with square corners\n";
+          }
+        }
+        out.scene(s, options);  // always, so a viewer knows what it sees
       } else if (e->channel == transport::kStateChannel) {
         const auto s = reader->decode<ladderlcm::state_t>(*e);
         // A viewer draws a state on its scene: their numbers of blocks must agree. (A state may come just before

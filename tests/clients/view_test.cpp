@@ -9,6 +9,7 @@
 #include "plot.hpp"
 #include "process.hpp"
 #include "pty.hpp"
+#include "rounded.hpp"
 #include "transport/dds.hpp"
 #include "transport/topics.hpp"
 
@@ -288,6 +289,263 @@ TEST(Draw, SideViewAndAscii) {
   EXPECT_GT(std::count(text.begin(), text.end(), '#'), 30) << text;
 }
 
+// Rolling hinges (docs/model.md section 9), computed here apart from the viewer's own geometry: corner c of block i
+// has an arc of radius r centred r in from both edges (corners 0 and 1 on the +x side; corner 0 at the low end of
+// even blocks and the high end of odd ones), and a hinge's contact point is halfway between its two arc centres.
+struct Rolling {
+  double length = 0.064, thickness = 0.013, r = 0;
+  // Block frame -> world.
+  static Point world(const client::Pose& p, Point l) {
+    const double c = std::cos(p.theta), s = std::sin(p.theta);
+    return {p.x + c * l.x - s * l.y, p.y + s * l.x + c * l.y};
+  }
+  // The centre of the arc at the corner on side sx (+1: +x) and end sy (+1: the high end), in the block's frame.
+  Point centre(int sx, int sy) const { return {sx * (0.5 * thickness - r), sy * (0.5 * length - r)}; }
+  // Corner c's side and end.
+  static int side(int c) { return (c & 2) ? -1 : 1; }
+  static int end(int block, int c) { return ((c & 1) == 0) == (block % 2 == 0) ? -1 : 1; }
+  Point corner_centre(int block, int c) const { return centre(side(c), end(block, c)); }
+  // The point of that arc whose outward normal is turned by `angle` from (sx, 0) toward (0, sy), `out` beyond it
+  // along the normal.
+  Point on_arc(int sx, int sy, double angle, double out = 0) const {
+    const Point c = centre(sx, sy);
+    return {c.x + (r + out) * sx * std::cos(angle), c.y + (r + out) * sy * std::sin(angle)};
+  }
+};
+
+client::SceneInfo rolling_info(std::uint32_t blocks, double r) {
+  client::SceneInfo info = classic_info(blocks);
+  char options[160];
+  std::snprintf(options, sizeof options, "sim.dt=0.001\nladder.depth=0.045\nladder.hinge=rolling\nladder.end_radius=%.17g\n",
+                r);
+  info.options = options;
+  info.top = "free";
+  return info;
+}
+
+// Blocks 0 and 1 joined by hinge 1 on their +x arcs (block 0's low end, block 1's high end): block 0 upright at the
+// origin, block 1 turned by `bend` toward the +x side, rolled on block 0 without slipping, so that the contact's
+// direction from block 0's arc centre has turned from straight down by half the bend. Returns the contact point too.
+client::State rolling_pair(const Rolling& g, double bend, Point& contact) {
+  client::State s;
+  s.blocks.push_back({0, 0, 0});
+  const Point ca = Rolling::world(s.blocks[0], g.corner_centre(0, 0));
+  const Point u{std::sin(0.5 * bend), -std::cos(0.5 * bend)};
+  const Point cb{ca.x + 2 * g.r * u.x, ca.y + 2 * g.r * u.y};
+  const Point lb = g.corner_centre(1, 0);
+  const double c = std::cos(bend), sn = std::sin(bend);
+  s.blocks.push_back({cb.x - (c * lb.x - sn * lb.y), cb.y - (sn * lb.x + c * lb.y), bend});
+  s.hinges = {{0, ladder_msg_HINGED, 0}, {0, ladder_msg_HINGED, 0}};
+  contact = {ca.x + g.r * u.x, ca.y + g.r * u.y};
+  return s;
+}
+
+bool is_ribbon(Rgb c) { return distance(c, view::kRibbon) < 12; }
+// Any of the blocks' colours (the palette's wood: red well above green, green well above blue).
+bool is_wood(Rgb c) { return c.r > c.g + 30 && c.g > c.b + 20; }
+
+// The outline the viewer draws and picks rolling-hinge blocks by, for a pair bent by 30, 90 and 150 degrees: its
+// area is the rounded rectangle's, L T - (4 - pi) r^2, less at most what 8 chords a quarter arc leave out (a cut at
+// a contact point leaves out less); on each
+// block, the hinge arc's tapes change hands (its own to the other block's) exactly at the contact point, halfway
+// between the arc centres, which moves along the arcs as the pair bends.
+TEST(Draw, RoundedOutlineSplitsEachHingeArcAtTheContactPoint) {
+  Rolling g;
+  g.r = 0.013 / 4;
+  const client::SceneInfo info = rolling_info(2, g.r);
+  for (const double bend_deg : {30.0, 90.0, 150.0}) {
+    SCOPED_TRACE("bend " + std::to_string(bend_deg) + " deg");
+    Point p;
+    const client::State s = rolling_pair(g, bend_deg * M_PI / 180, p);
+    const Point pv = view::pivot(info, s, 1);
+    EXPECT_NEAR(pv.x, p.x, 1e-15);
+    EXPECT_NEAR(pv.y, p.y, 1e-15);
+    std::vector<view::Facet> f;
+    for (const int block : {0, 1}) {
+      view::rounded_outline(info, s, block, g.r, 8, f);
+      double area = 0;
+      for (const view::Facet& e : f) area += 0.5 * (e.a.x * e.b.y - e.b.x * e.a.y);
+      const double exact = g.length * g.thickness - (4 - M_PI) * g.r * g.r;
+      const double chords = 4 * 8 * 0.5 * g.r * g.r * (M_PI / 16 - std::sin(M_PI / 16));  // the segments cut off
+      EXPECT_GE(area, exact - chords - 1e-15) << "block " << block;
+      EXPECT_LE(area, exact) << "block " << block;
+      const Point local = view::to_block_frame(s.blocks[block], p);
+      int handovers = 0;
+      for (std::size_t k = 0; k < f.size(); ++k) {
+        const view::Facet& a = f[k];
+        const view::Facet& b = f[(k + 1) % f.size()];
+        if (a.hinge != 1 || b.hinge != 1 || a.owner == b.owner) continue;
+        ++handovers;
+        EXPECT_NEAR(a.b.x, local.x, 1e-12) << "block " << block;
+        EXPECT_NEAR(a.b.y, local.y, 1e-12) << "block " << block;
+      }
+      EXPECT_EQ(handovers, 1) << "block " << block;
+    }
+  }
+}
+
+// The side view of a rolling pair bent by 90 degrees, with ends rounded by a quarter and by half the thickness: each
+// corner's arc is where the radius puts it (3 px outside it the background, 4 px inside the block's colour), on the
+// ends' flat part too; the tapes, drawn as lines along the outline in this view, run along the hinge's side (+x) and
+// cross at the contact point: on each block's hinge arc its own tapes up to the contact, the other block's beyond
+// it, then over the rest of that end; the -x side, which no hinge uses here, has none. A click finds the block in
+// its arc, and nothing at the cut-off corner.
+TEST(Draw, RoundedEndsAndTheTapesCrossingAtTheContactInTheSideView) {
+  for (const double r : {0.013 / 4, 0.013 / 2}) {
+    SCOPED_TRACE("end radius " + std::to_string(r));
+    Rolling g;
+    g.r = r;
+    const client::SceneInfo info = rolling_info(2, r);
+    EXPECT_EQ(view::end_radius_of(info), r);
+    Point p;
+    const client::State s = rolling_pair(g, M_PI / 2, p);
+    Camera cam;
+    cam.width = cam.height = 700;
+    cam.cx = p.x;
+    cam.cy = p.y;
+    cam.scale = 12000;  // the radius 39 or 78 px
+    const double px = 1 / cam.scale;
+    const std::string name = r < 0.005 ? "DrawRollingSide-quarter" : "DrawRollingSide-half";
+    const Image img = render(cam, info, s, name);
+    const auto at = [&](int block, Point local) { return img.at(cam.to_screen(Rolling::world(s.blocks[block], local))); };
+    // The arcs at the ends that meet at the hinge, both corners of each.
+    for (const auto& [block, sy] : {std::pair{0, -1}, std::pair{1, 1}})
+      for (const int sx : {-1, 1})
+        for (const double deg : {15.0, 45.0, 75.0}) {
+          const double a = deg * M_PI / 180;
+          if (sx == 1 && deg == 45.0) continue;  // the contact, under the hinge's dot
+          // Block 1's arcs on the hinge's side face block 0 across the contact: only the other side's show a gap.
+          if (!(block == 1 && sx == 1)) {
+            const Rgb outside = at(block, g.on_arc(sx, sy, a, 3 * px));
+            EXPECT_EQ(distance(outside, view::kBackground), 0)
+                << "block " << block << " arc (" << sx << ", " << sy << ") at " << deg << " deg, 3 px out: rgb "
+                << outside.r << "," << outside.g << "," << outside.b;
+          }
+          const Rgb inside = at(block, g.on_arc(sx, sy, a, -4 * px));
+          EXPECT_LT(distance(inside, view::side_colour(block)), 12)
+              << "block " << block << " arc (" << sx << ", " << sy << ") at " << deg << " deg, 4 px in: rgb "
+              << inside.r << "," << inside.g << "," << inside.b;
+        }
+    if (r < 0.5 * g.thickness) {  // the flat middle of block 0's low end
+      EXPECT_EQ(distance(at(0, {0, -0.5 * g.length - 4 * px}), view::kBackground), 0);
+      EXPECT_LT(distance(at(0, {0, -0.5 * g.length + 4 * px}), view::side_colour(0)), 12);
+    }
+    // The tapes. Hinge 1's arcs: block 0's from its +x face (0 deg) to its low end (90), block 1's from its +x face
+    // to its high end; the contact is at 45 deg on both. Its own tapes before the contact, the other's after it, so
+    // on every arm of the crossing; and the other corner of each end, wrapped by the crossed tapes.
+    for (const int block : {0, 1})
+      for (const double deg : {12.0, 30.0, 60.0, 78.0}) {
+        const Rgb c = at(block, g.on_arc(1, block == 0 ? -1 : 1, deg * M_PI / 180));
+        EXPECT_TRUE(is_ribbon(c)) << "block " << block << " hinge arc at " << deg << " deg: rgb " << c.r << "," << c.g
+                                  << "," << c.b;
+        EXPECT_TRUE(is_ribbon(at(block, g.on_arc(-1, block == 0 ? -1 : 1, deg * M_PI / 180))))
+            << "block " << block << " the end's other arc at " << deg << " deg";
+      }
+    EXPECT_LT(distance(img.at(cam.to_screen(p)), view::kHinge), 12) << "the hinge's dot at the contact";
+    for (const int block : {0, 1}) {
+      const double y = (block == 0 ? -1 : 1) * (0.5 * g.length - r - 80 * px);  // along the face, 80 px from the arc
+      EXPECT_TRUE(is_ribbon(at(block, {0.5 * g.thickness, y}))) << "block " << block << ": its +x face has tapes";
+      const Rgb none = at(block, {-0.5 * g.thickness + 1 * px, y});
+      EXPECT_LT(distance(none, view::side_colour(block)), 12) << "block " << block << ": its -x face has none";
+    }
+    // Picking: in the arc, block 0; at its cut-off corner, nothing (the ray passes the rounded box).
+    const Point in = Rolling::world(s.blocks[0], g.on_arc(-1, -1, M_PI / 4, -4 * px));
+    const Point out = Rolling::world(s.blocks[0], g.on_arc(-1, -1, M_PI / 4, 3 * px));
+    EXPECT_EQ(view::block_at(info, s, in), 0);
+    EXPECT_EQ(view::block_at(info, s, out), -1);
+    EXPECT_EQ(view::pick(cam, info, s, cam.to_screen(in)).block, 0);
+    EXPECT_EQ(view::pick(cam, info, s, cam.to_screen(out)).block, -1);
+    // The terminal: the same picture read back cell by cell (one pixel a column, two a row). Near block 0's -x low
+    // corner (1.5 px in from it), the rounded block leaves the cell empty where the square one has its side (':');
+    // its +x face's cell is a tape ('+') where the square one, whose tapes are edge-on, has none.
+    Camera small = cam;
+    small.scale = 4000;
+    small.cx = 0;  // block 0's centre line: its -x corner in the picture
+    small.width = 80;
+    small.height = 120;
+    const auto cell = [&](Point local) {
+      const Point q = small.to_screen(Rolling::world(s.blocks[0], local));
+      return static_cast<std::size_t>(q.y / 2) * 81 + static_cast<std::size_t>(q.x);
+    };
+    const std::size_t corner = cell({-0.5 * g.thickness + 1.5 / small.scale, -0.5 * g.length + 1.5 / small.scale});
+    const std::size_t face = cell({0.5 * g.thickness - 0.3 / small.scale, -0.5 * g.length + r + 12 / small.scale});
+    const std::string text = view::render_ascii(small, info, s, 80, 60);
+    EXPECT_EQ(text.at(corner), ' ') << text;
+    EXPECT_EQ(text.at(face), '+') << text;
+    client::SceneInfo square = info;
+    square.options = "ladder.hinge=corner\nladder.end_radius=0\n";
+    EXPECT_EQ(view::end_radius_of(square), 0);
+    const std::string text0 = view::render_ascii(small, square, s, 80, 60);
+    EXPECT_EQ(text0.at(corner), ':') << text0;
+    EXPECT_NE(text0.at(face), '+') << text0;
+  }
+}
+
+// The same pair in 3-D. Seen from the front right and above (the default view), block 0's hinge arc carries its two
+// outer tapes from its +x face round toward the contact, and its front narrow side is cut off at its rounded corner.
+// Seen from the left, below, into the wedge the bend opens between the two ends, each end carries the other block's
+// tapes that crossed at the contact: block 1's end the outer pair of block 0, block 0's end the central tape of
+// block 1.
+TEST(Draw, RoundedEndsIn3dTheTapesWrapThemAndCross) {
+  Rolling g;
+  g.r = 0.013 / 4;
+  const client::SceneInfo info = rolling_info(2, g.r);
+  Point p;
+  const client::State s = rolling_pair(g, M_PI / 2, p);
+  const double d = view::depth_of(info), hw = 0.5 * g.thickness, hl = 0.5 * g.length;
+  const auto world3 = [&](int block, Point l, double z) {
+    const Point w = Rolling::world(s.blocks[block], l);
+    return view::Vec3{w.x, w.y, z};
+  };
+  Camera cam;
+  cam.width = cam.height = 700;
+  cam.cx = p.x;
+  cam.cy = p.y;
+  cam.scale = 8000;
+  cam.yaw = view::kDefaultYaw;
+  cam.pitch = view::kDefaultPitch;
+  const Image front = render(cam, info, s, "DrawRolling3d-front");
+  const auto at = [&](const Image& img, const Camera& c, int block, Point l, double z) {
+    return img.at(c.project(world3(block, l, z)));
+  };
+  const Point arc = g.on_arc(1, -1, 0.25 * M_PI / 2, -0.5 / cam.scale);  // a quarter of the way from face to end
+  EXPECT_TRUE(is_ribbon(at(front, cam, 0, arc, 0.32 * d)));
+  EXPECT_TRUE(is_ribbon(at(front, cam, 0, arc, -0.32 * d)));
+  EXPECT_LT(distance(at(front, cam, 0, arc, 0), view::face_colour(0)), 12);
+  EXPECT_LT(distance(at(front, cam, 0, arc, 0.16 * d), view::face_colour(0)), 12);
+  // The front narrow side's corner: nothing of the block there; inside the arc, the narrow side.
+  EXPECT_EQ(distance(at(front, cam, 0, {-hw, -hl}, 0.5 * d), view::kBackground), 0);
+  EXPECT_LT(distance(at(front, cam, 0, g.on_arc(-1, -1, M_PI / 4, -4 / cam.scale), 0.5 * d), view::side_colour(0)),
+            12);
+
+  Camera wedge = cam;
+  wedge.yaw = 50 * M_PI / 180;
+  wedge.pitch = -20 * M_PI / 180;
+  const Image img = render(wedge, info, s, "DrawRolling3d-wedge");
+  // Block 1's high end faces the camera (it is turned by 90 degrees), block 0's low end faces down.
+  EXPECT_TRUE(is_ribbon(at(img, wedge, 1, {0, hl}, 0.32 * d)));
+  EXPECT_TRUE(is_ribbon(at(img, wedge, 1, {0, hl}, -0.32 * d)));
+  EXPECT_LT(distance(at(img, wedge, 1, {0, hl}, 0), view::kDepth), 12);
+  EXPECT_TRUE(is_ribbon(at(img, wedge, 0, {0, -hl}, 0)));
+  EXPECT_LT(distance(at(img, wedge, 0, {0, -hl}, 0.32 * d), view::kDepth), 12);
+  // On the arcs: block 1's hinge arc beyond the contact (67.5 deg from its face, the contact at 45) and the arc at
+  // its end's other corner carry block 0's outer pair; the arc at block 0's end's other corner, block 1's central
+  // tape.
+  const auto tapes_at = [&](int block, Point l) {
+    std::string out;
+    for (const double z : {-0.32, 0.0, 0.32}) {
+      const Rgb c = at(img, wedge, block, l, z * d);
+      out += is_ribbon(c) ? '+' : is_wood(c) ? '#' : '?';
+    }
+    return out;
+  };
+  EXPECT_EQ(tapes_at(1, g.on_arc(1, 1, 67.5 * M_PI / 180, -0.5 / wedge.scale)), "+#+");
+  EXPECT_EQ(tapes_at(1, g.on_arc(-1, 1, M_PI / 4, -0.5 / wedge.scale)), "+#+");
+  EXPECT_EQ(tapes_at(0, g.on_arc(-1, -1, M_PI / 4, -0.5 / wedge.scale)), "#+#");
+  // A click on block 1's end picks block 1.
+  EXPECT_EQ(view::pick(wedge, info, s, wedge.project(world3(1, {0, hl}, 0.2 * d))).block, 1);
+}
+
 TEST(Draw, OnlyWhatIsOnScreenOfAHundredThousandBlocks) {
   const client::SceneInfo info = classic_info(100000);
   const client::State s = zigzag(100000);
@@ -338,15 +596,20 @@ TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
 
 class View : public ::testing::Test {
  protected:
+  // What the test's ladderd runs besides the built-in scene: --set options.
+  virtual std::vector<std::string> scene_args() const { return {}; }
+
   void SetUp() override {
     const std::string name = test_name();
     sim_id_ = sim_id_for(name);
     domain_ = domain_for(name);
     log_path_ = kBin + "/tests/" + name + ".log";
     out_ = kBin + "/tests/" + name;
-    server_.emplace(std::vector<std::string>{kBin + "/server/ladderd", "--domain", std::to_string(domain_),
-                                             "--sim-id", sim_id_, "--log-level", "debug"},
-                    log_path_);
+    std::vector<std::string> args{kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id", sim_id_,
+                                  "--log-level", "debug"};
+    const std::vector<std::string> extra = scene_args();
+    args.insert(args.end(), extra.begin(), extra.end());
+    server_.emplace(args, log_path_);
     client_.emplace(domain_, sim_id_, "test");
     ASSERT_TRUE(client_->wait_for_server(kStart)) << "no ladderd on domain " << domain_ << "; its log:\n"
                                                   << server_->log();
@@ -821,6 +1084,139 @@ TEST_F(View, WindowWaitsForTheSceneInfoOfAStateThatCameFirst) {
   EXPECT_FALSE(viewer.wait_exit(Millis(500)).has_value()) << viewer.log();
   viewer.signal(SIGTERM);
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Rolling hinges: a real ladderd whose blocks have fully rounded ends (the classic toy with ladder.hinge = "rolling"
+// and ladder.end_radius = thickness / 2, which hangs in a straight column).
+
+class RollingView : public View {
+ protected:
+  std::vector<std::string> scene_args() const override {
+    return {"--set", "ladder.hinge=rolling", "--set", "ladder.end_radius=0.0065"};
+  }
+};
+
+// Snapshots of the paused ladder. The 3-D view: every block's face and its tapes where the state puts them, as for
+// corner hinges. Zoomed on hinge 3 in the side view: the four arcs of the two ends that meet there are where the
+// state and the radius put them (background 3 px outside, the block 4 px inside), the tapes run over every one of
+// them and the hinge's dot is at the contact (halfway between the arc centres), where they cross. Zoomed on the
+// bottom block's free end in 3-D: its narrow side's corner is cut off. Then the window under Xvfb: the screenshot
+// shows the ladder, and a click inside block 3's rounded end pokes block 3.
+TEST_F(RollingView, PngAndWindowShowRoundedEndsAndTheTapesCrossingAtEachContact) {
+  const client::State s = pause();
+  const client::SceneInfo info = *client_->scene_info();
+  ASSERT_NE(info.options.find("ladder.hinge=rolling\n"), std::string::npos) << info.options;
+  ASSERT_NE(info.options.find("ladder.end_radius=0.0065\n"), std::string::npos) << info.options;
+  Rolling g;
+  g.length = info.length;
+  g.thickness = info.thickness;
+  g.r = 0.0065;
+  const double d = view::depth_of(info);
+  const auto view_arg = [](Point c, double scale, double yaw, double pitch) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, " --view %.17g,%.17g,%.17g,%.17g,%.17g", c.x, c.y, scale, yaw, pitch);
+    return std::string(buf);
+  };
+
+  const Result a = viewer("--png " + out_ + "-3d.png --size 500x700");
+  ASSERT_EQ(a.code, 0) << a.output;
+  const auto cam = camera_in(a.output, 500, 700);
+  ASSERT_TRUE(cam) << a.output;
+  const Image img = read_png(out_ + "-3d.png");
+  expect_blocks_at_centres(img, *cam, info, s);
+  EXPECT_EQ(tapes_seen(img, *cam, info, s), "ocococ");
+
+  // Hinge 3, between blocks 2 and 3, in the side view at 12 000 px/m (the radius is 78 px).
+  const int c = s.hinges[3].corner;
+  const Point a2 = Rolling::world(s.blocks[2], g.corner_centre(2, c)), a3 = Rolling::world(s.blocks[3], g.corner_centre(3, c));
+  const Point contact{0.5 * (a2.x + a3.x), 0.5 * (a2.y + a3.y)};
+  const double scale = 12000, px = 1 / scale;
+  const Result b = viewer("--png " + out_ + "-side.png --size 600x600" + view_arg(contact, scale, 0, 0));
+  ASSERT_EQ(b.code, 0) << b.output;
+  const auto side = camera_in(b.output, 600, 600);
+  ASSERT_TRUE(side) << b.output;
+  const Image sv = read_png(out_ + "-side.png");
+  const auto at = [&](int block, Point local) { return sv.at(side->to_screen(Rolling::world(s.blocks[block], local))); };
+  EXPECT_LT(distance(sv.at(side->to_screen(contact)), view::kHinge), 12) << "no hinge dot at the contact";
+  for (const int block : {2, 3})
+    for (const int sx : {-1, 1}) {
+      const int sy = Rolling::end(block, c);
+      for (const double deg : {15.0, 45.0, 75.0}) {
+        const double angle = deg * M_PI / 180;
+        const Rgb in = at(block, g.on_arc(sx, sy, angle, -4 * px)), tape = at(block, g.on_arc(sx, sy, angle));
+        EXPECT_LT(distance(in, view::side_colour(block)), 12) << "block " << block << " arc (" << sx << ", " << sy
+                                                               << ") at " << deg << " deg, 4 px in: rgb " << in.r
+                                                               << "," << in.g << "," << in.b;
+        EXPECT_TRUE(is_ribbon(tape)) << "block " << block << " arc (" << sx << ", " << sy << ") at " << deg
+                                     << " deg: no tape; rgb " << tape.r << "," << tape.g << "," << tape.b;
+        if (deg == 75.0) continue;  // near the tip the other block's arc and its tape are close
+        const Rgb out = at(block, g.on_arc(sx, sy, angle, 3 * px));
+        EXPECT_EQ(distance(out, view::kBackground), 0) << "block " << block << " arc (" << sx << ", " << sy << ") at "
+                                                       << deg << " deg, 3 px out: rgb " << out.r << "," << out.g << ","
+                                                       << out.b;
+      }
+    }
+
+  // The bottom block's free end, in 3-D: the box's corner on its front narrow side (12 % of the radius in from both
+  // edges) is background; inside the arc, the narrow side.
+  const client::Pose& last = s.blocks[5];
+  const double hw = 0.5 * g.thickness, hl = 0.5 * g.length;
+  const Point end = Rolling::world(last, {0, -hl});
+  const Result e = viewer("--png " + out_ + "-end.png --size 500x500" +
+                          view_arg(end, 8000, view::kDefaultYaw * 180 / M_PI, view::kDefaultPitch * 180 / M_PI));
+  ASSERT_EQ(e.code, 0) << e.output;
+  const auto ecam = camera_in(e.output, 500, 500);
+  ASSERT_TRUE(ecam) << e.output;
+  const Image ev = read_png(out_ + "-end.png");
+  const auto at3 = [&](Point local, double z) {
+    const Point w = Rolling::world(last, local);
+    return ev.at(ecam->project({w.x, w.y, z}));
+  };
+  const double inset = 0.12 * g.r;
+  for (const int sx : {-1, 1}) {
+    const Rgb cut = at3({sx * (hw - inset), -hl + inset}, 0.5 * d);
+    EXPECT_EQ(distance(cut, view::kBackground), 0) << "corner " << sx << ": rgb " << cut.r << "," << cut.g << "," << cut.b;
+  }
+  EXPECT_LT(distance(at3(g.on_arc(-1, -1, M_PI / 4, -0.3 * g.r), 0.5 * d), view::side_colour(5)), 12);
+
+  // The window: the picture, and a click inside block 3's rounded low end (on its front narrow side, halfway
+  // between the arc's centre and its tip) pokes block 3.
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process window({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_, "--size", "640x600"},
+                 out_ + "-viewer.log");
+  std::optional<Camera> wcam;
+  ASSERT_TRUE(eventually([&] { return (wcam = camera_in(window.log(), 640, 600)).has_value(); }, kStart))
+      << window.log();
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << window.log();
+  const auto shows_ladder = [&] {
+    const Image screen = x.screen();
+    for (std::size_t i = 0; i < s.blocks.size(); ++i) {
+      const Point p = on_wide_face(*wcam, info, s.blocks[i], i == 0 ? -0.35 : 0, -0.16);
+      if (distance(screen.at({p.x + where->x, p.y + where->y}), view::face_colour(int(i))) >= 12) return false;
+    }
+    return true;
+  };
+  if (!eventually(shows_ladder, kStart)) {
+    write_png(x.screen(), out_ + "-screen.png");
+    FAIL() << "the screen does not show the ladder; see " << out_ << "-screen.png; the viewer's log:\n" << window.log();
+  }
+  write_png(x.screen(), out_ + "-screen.png");
+  const Point q = Rolling::world(s.blocks[3], g.corner_centre(3, s.hinges[4].corner));
+  const Point click = wcam->project({q.x + 0.5 * g.r * std::sin(s.blocks[3].theta),
+                                     q.y - 0.5 * g.r * std::cos(s.blocks[3].theta), 0.5 * d});
+  EXPECT_EQ(view::pick(*wcam, info, s, click).block, 3);
+  ASSERT_EQ(shell("DISPLAY=" + x.display() + " xdotool mousemove --sync " + std::to_string(int(click.x + where->x)) +
+                  " " + std::to_string(int(click.y + where->y)) + " click 1")
+                .code,
+            0);
+  EXPECT_TRUE(eventually([&] { return window.log().find("poke block 3: accepted") != std::string::npos; }, kStart))
+      << window.log();
+  window.signal(SIGTERM);
+  EXPECT_TRUE(window.wait_exit(kStart).has_value());
 }
 
 // ---------------------------------------------------------------------------------------------------------------
