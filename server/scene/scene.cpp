@@ -909,7 +909,11 @@ std::string live_settings(const Scene& s) {
   line("damping.hinge", format_number(o.hinge_friction));
   line("ladder.depth", format_number(s.depth));  // not live: carried here for the viewer, which draws it
   line("ladder.hinge", s.ladder.hinge == model::HingeKind::Rolling ? "rolling" : "corner");  // likewise
-  line("ladder.end_radius", format_number(s.ladder.end_radius));
+  // To the last bit, in the shortest form that reads back the same: the viewer draws the ends from it
+  // (format_number keeps 3 digits).
+  char radius[32];
+  const auto written = std::to_chars(radius, radius + sizeof radius, s.ladder.end_radius);
+  line("ladder.end_radius", std::string(radius, written.ptr));
   return out;
 }
 
