@@ -15,8 +15,9 @@
 // unit vector from the hinged corner along the length, and sigma = cross(e_c, w_c) of block k-1 (+1 or -1: the
 // side its body lies on), s = sigma * cross(a, b) is <= 0 in the allowed half and crosses zero only when the pair
 // is straight (a = -b) or folded (a = b). Algorithm 1 acts when s > 0: flip-flop if |a + b| is large (folded),
-// lock if small (straight). Crossings are located in time so the restructure happens where s = 0: at that instant
-// the far corners of a folded pair coincide, and the flip-flop moves the hinge there without any position jump.
+// else the pair meets its straight stop, a one-sided contact: an impact, or a lock while the loads press it there.
+// Crossings are located in time so the restructure happens where s = 0: at that instant the far corners of a folded
+// pair coincide, and the flip-flop moves the hinge there without any position jump.
 #pragma once
 
 #include "core/world.hpp"
@@ -58,7 +59,9 @@ struct LadderSpec {
   FlipImpact flip_impact = FlipImpact::Face;
   bool logic = true;           // Algorithm 1: flip-flops, locks and unlocks
   double tip_duration = 0.3;   // [s] for the hand to turn the top block through 180 degrees
-  double unlock_threshold = 1e-5;  // [N m] a lock lets go once its weld pulls harder than this
+  // [N m] a meeting with the straight stop is a lock unless the stop would have to pull harder than this, and a lock
+  // lets go once it would
+  double unlock_threshold = 1e-5;
   double capture_distance = 0.005; // [m] farthest apart two corners may be for a join
   // Hinge particles sit this fraction of the thickness in from the edge: 0 is the paper's corners, 0.5 the middle
   // of the block's end, near where the real toy's ribbons cross (paper, section 4). Corner pivots make each
