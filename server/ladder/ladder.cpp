@@ -114,8 +114,8 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
           "ladder.hinge_inset must be at least 0 and below 0.5");
   require(std::isfinite(spec.unlock_threshold) && spec.unlock_threshold >= 0, "ladder.unlock_threshold must be >= 0");
   require(std::isfinite(spec.capture_distance) && spec.capture_distance >= 0, "ladder.capture_distance must be >= 0");
+  inertia_factor_ = (spec.length * spec.length + spec.thickness * spec.thickness) / 12;
   const double L = spec.length, W = 2 * (0.5 - spec.hinge_inset) * spec.thickness;  // W: hinge-to-hinge width
-  inertia_factor_ = (L * L + spec.thickness * spec.thickness) / 12;
   // Corner particles of mass m_c at (+-W/2, +-L/2) and the rest at the centre reproduce a uniform rectangle's
   // inertia m (L^2 + T^2) / 12 (T the thickness) when 4 m_c (W^2 + L^2) / 4 = m (L^2 + T^2) / 12.
   const double corner_share = (L * L + spec.thickness * spec.thickness) / (12 * (W * W + L * L));
