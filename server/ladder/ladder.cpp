@@ -404,8 +404,7 @@ void Ladder::advance_by(double h) {
   std::vector<double> s0, s1;
   for (int guard = 0; remaining > 0; ++guard) {
     violations_at_start(s0);
-    const core::Energy e0 = world_.energy();
-    piece_work_ = 0;
+    const core::Energy e0 = world_.energy();  // with piece_work_ zero: at the start, or after book_motion()
     step_guarded(remaining, 0);
     const core::Snapshot& start = before_[0];  // the world before the step, for event location
     bool clamped = false;
@@ -606,11 +605,11 @@ bool Ladder::take_back_release(int k) {
 
 // The moment [N m] that the contact of each locked hinge, and of hinge `meeting`, welded a moment ago, carries at this
 // instant (index k; 0 for the others), signed by contact_moment(). It comes from the hinge forces of the index-1
-// equations: one explicit Euler step of a thousandth of the step under way, with nothing projected, then undone. Its
-// velocity change is exactly that step times the accelerations at its start, so World::weld_moment() over it is the
-// instantaneous moment, free of any solver tolerance. (Over a step of the scene's own integrator the moment is a
-// mean over that step, so a lock would let go up to a step late and a meeting could be judged by loads that come
-// later; over a short one, the impulse that closes a hinge gap of up to the solver's tolerance would swamp it.)
+// equations: one explicit Euler step of a thousandth of the step under way, with nothing projected, on a copy of the
+// world. Its velocity change is exactly that step times the accelerations at its start, so World::weld_moment() over it
+// is the instantaneous moment, free of any solver tolerance. (Over a step of the scene's own integrator the moment is a
+// mean over that step, so a lock would let go up to a step late and a meeting could be judged by loads that come later;
+// over a short one, the impulse that closes a hinge gap of up to the solver's tolerance would swamp it.)
 void Ladder::contact_moments(std::vector<double>& moments, int meeting) {
   moments.assign(hinges_.size(), 0.0);
   probe_ = world_;  // a copy (its buffers reused), so that the world keeps its own last step's figures and caches
