@@ -193,7 +193,7 @@ void print_state(const client::State& s, bool json) {
 }
 
 // The event kinds ladderd publishes (server/ladder/ladder.cpp, to_string(EventKind)).
-const std::vector<std::string> kEventKinds{"flip_flop", "lock", "unlock", "break", "join", "solver_warning"};
+const std::vector<std::string> kEventKinds{"flip_flop", "impact", "lock", "unlock", "break", "join", "solver_warning"};
 
 // --kinds flip_flop,lock -> the kinds; every one must be a kind ladderd publishes.
 std::vector<std::string> event_kinds(const std::string& text) {
@@ -446,8 +446,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
       ->check(CLI::IsMember({"events", "stats", "state"}));
   w->add_flag("--json", v.watch.json, "one JSON object per line");
   w->add_option("--rate", v.watch.rate, "most state lines per second in text (default 10; 0 = every state)");
-  w->add_option("--kinds", v.kinds, "with events: only these kinds, e.g. flip_flop,lock (flip_flop, lock, unlock, "
-                                    "break, join, solver_warning)");
+  w->add_option("--kinds", v.kinds, "with events: only these kinds, e.g. flip_flop,lock (flip_flop, impact, lock, "
+                                    "unlock, break, join, solver_warning)");
   w->callback([&] {
     if (!v.kinds.empty() && v.watch.what != "events")
       throw CLI::ValidationError("--kinds", "only watch events takes --kinds");

@@ -145,10 +145,25 @@ int run_offline(const OfflineOptions& o) {
                {"energy_initial_J", energy_initial},
                {"energy_final_J", sim->ladder().energy()},
                {"events", counts}};
+  // Where the energy went (model::Losses): each kind of event's velocity fix, and the motion between them.
+  const model::Ladder& ladder = sim->ladder();
+  const model::Losses& lost = ladder.losses();
+  const auto removed = [&](model::EventKind k) { return lost.removed[static_cast<std::size_t>(k)]; };
+  using model::EventKind;
+  summary["energy_lost_J"] = json{{"flip_flop", removed(EventKind::FlipFlop)}, {"impact", removed(EventKind::Impact)},
+                                  {"lock", removed(EventKind::Lock)},          {"join", removed(EventKind::Join)},
+                                  {"motion", lost.motion},                     {"total", lost.total()}};
+  const int flips = ladder.flip_flops();
+  summary["energy_lost_per_flip_flop_J"] = flips > 0 ? json(ladder.lost_by_last_flip() / flips) : json(nullptr);
   if (out.summary) *out.summary << summary.dump(2) << '\n';
   spdlog::info("done: {} steps in {:.3f} s ({:.3g} block-steps/s), max hinge error {:.3g} m", sim->steps(),
                stepping, rate, max_error);
   for (const auto& [kind, n] : counts) spdlog::info("  {:>16}: {}", kind, n);
+  spdlog::info("energy lost: {:.3g} J (flip-flop landings {:.3g}, impacts {:.3g}, locks {:.3g}, damping and integrator "
+               "{:.3g}){}",
+               lost.total(), removed(EventKind::FlipFlop), removed(EventKind::Impact), removed(EventKind::Lock),
+               lost.motion,
+               flips > 0 ? fmt::format("; {:.3g} J per flip-flop", ladder.lost_by_last_flip() / flips) : "");
   if (out.events) out.events->flush();
   if (out.trajectory) out.trajectory->flush();
   const bool written = (!out.events || *out.events) && (!out.trajectory || *out.trajectory) && (!out.summary || *out.summary);

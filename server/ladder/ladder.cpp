@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,7 @@ using core::Rot;
 const char* to_string(EventKind k) {
   switch (k) {
     case EventKind::FlipFlop: return "flip_flop";
+    case EventKind::Impact: return "impact";
     case EventKind::Lock: return "lock";
     case EventKind::Unlock: return "unlock";
     case EventKind::Break: return "break";
@@ -119,6 +121,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
           "ladder.hinge_inset is for corner hinges; a rolling hinge's pivot is set by ladder.end_radius");
   require(std::isfinite(spec.unlock_threshold) && spec.unlock_threshold >= 0, "ladder.unlock_threshold must be >= 0");
   require(std::isfinite(spec.capture_distance) && spec.capture_distance >= 0, "ladder.capture_distance must be >= 0");
+  inertia_factor_ = (spec.length * spec.length + spec.thickness * spec.thickness) / 12;
   // W, L: the hinge particles' spacing across and along the block (the corners, or a rolling hinge's arc centres,
   // end_radius r in from both edges); r: the arcs' radius, 0 for corner hinges.
   const double r = spec.end_radius;
@@ -184,6 +187,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
     world_.connect(world_particle_, particle(0, 3));
   }
   measure_coef_.resize(static_cast<size_t>(spec.blocks));
+  released_at_.assign(static_cast<size_t>(spec.blocks), -std::numeric_limits<double>::infinity());
   for (int k = 1; k < spec.blocks; ++k) {
     const int c = corner_of(k);
     hinges_[k] = {c, HingeStatus::Hinged, 0};
@@ -288,8 +292,46 @@ void Ladder::violations_at_start(std::vector<double>& s) {
   any_violation(s);
 }
 
+// Every event's energy goes into the ledger. A flip-flop's event says what was lost since the last one (or since the
+// start): its own landing, the pairs' meetings with their stops, and the motion (losses()).
 void Ladder::emit(EventKind kind, int k, double energy, std::string detail) {
+  losses_.removed[static_cast<size_t>(kind)] += energy;
+  since_flip_.removed[static_cast<size_t>(kind)] += energy;
+  if (kind == EventKind::FlipFlop) {
+    const auto& r = since_flip_.removed;
+    const auto at = [&](EventKind e) { return r[static_cast<size_t>(e)]; };
+    detail = "lost " + format_number(since_flip_.total()) + " J since the last flip-flop: landing " +
+             format_number(energy) + " J, stops " + format_number(at(EventKind::Impact) + at(EventKind::Lock)) +
+             " J, damping and integrator " + format_number(since_flip_.motion) + " J";
+    if (at(EventKind::Join) != 0) detail += ", joins " + format_number(at(EventKind::Join)) + " J";
+    since_flip_ = {};
+    lost_by_last_flip_ = losses_.total();
+    ++flip_flops_;
+  }
   events_.push_back({world_.time(), kind, k, energy, std::move(detail)});
+}
+
+// The motion's loss over the piece of time just taken (Losses::motion), from the energy at its start; the work its
+// accepted steps put in is in piece_work_. Energies of the dynamic bodies, whose set a piece does not change.
+void Ladder::book_motion(const core::Energy& e0) {
+  const double lost = e0.total() + piece_work_ - world_.energy().total();
+  losses_.motion += lost;
+  since_flip_.motion += lost;
+  piece_work_ = 0;
+}
+
+// The kinetic energy of every block but a held one [J]. Unlike World::kinetic_energy() (dynamic bodies only), a block
+// welded to the hand still counts, with the hand's motion: so an event's energy is what its velocity fix removed
+// from the blocks, not the energy of a block that joined or left the hand's body.
+double Ladder::blocks_kinetic() const {
+  double e = 0;
+  for (int i = 0; i < spec_.blocks; ++i) {
+    if (world_.is_kinematic(i)) continue;
+    const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[static_cast<size_t>(i)];
+    const double w = world_.part_omega(i);
+    e += 0.5 * m * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w);
+  }
+  return e;
 }
 
 std::vector<Event> Ladder::take_events() { return std::exchange(events_, {}); }
@@ -344,6 +386,7 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
   }
   if (depth == 0) halving_ = false;
   const core::StepStats& st = world_.last_step();
+  piece_work_ += st.work;
   if (!st.converged && !warned_)
     emit(EventKind::SolverWarning, 0, 0, "hinge solve stopped at residual " + format_number(st.residual) + " m");
   warned_ = !st.converged;
@@ -369,8 +412,12 @@ void Ladder::advance(double h) {
 }
 
 void Ladder::advance_by(double h) {
+  step_h_ = h;
+  piece_work_ = 0;
   if (!spec_.logic) {
+    const core::Energy e0 = world_.energy();
     step_guarded(h, 0);
+    book_motion(e0);
     return;
   }
   const std::size_t events_before = events_.size();
@@ -378,6 +425,7 @@ void Ladder::advance_by(double h) {
   std::vector<double> s0, s1;
   for (int guard = 0; remaining > 0; ++guard) {
     violations_at_start(s0);
+    const core::Energy e0 = world_.energy();  // with piece_work_ zero: at the start, or after book_motion()
     step_guarded(remaining, 0);
     const core::Snapshot& start = before_[0];  // the world before the step, for event location
     bool clamped = false;
@@ -386,10 +434,12 @@ void Ladder::advance_by(double h) {
       s_cache_version_ = world_.state_version();
       s_cache_structure_ = world_.structure();
       s_cache_valid_ = !clamped;
+      book_motion(e0);
       break;
     }
     if (guard >= 64) {  // a pathological pile-up of events in one step: keep going, but say so
       emit(EventKind::SolverWarning, 0, 0, "more than 64 restructuring events in one step");
+      book_motion(e0);
       break;
     }
     int k = -1;
@@ -402,6 +452,7 @@ void Ladder::advance_by(double h) {
       throw;
     }
     locating_ = false;
+    book_motion(e0);  // up to the crossing, where the world now is
     restructure(k);
     remaining -= tau * remaining;
     if (remaining <= 1e-12 * h) break;
@@ -443,6 +494,7 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
       tau = (lo * ghi - top * glo) / (ghi - glo);
       if (!(tau > lo && tau < top)) tau = 0.5 * (lo + top);
       world_.restore(start);
+      piece_work_ = 0;
       step_guarded(tau * h, 0, &start);
       const double g = hinge_measure(k) - target;
       if (std::abs(g) <= band) {
@@ -463,9 +515,11 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
     if (!found) {  // the bracket collapsed: take its end just past the boundary
       tau = top;
       world_.restore(start);
+      piece_work_ = 0;
       if (tau > 0) step_guarded(tau * h, 0, &start);
     } else if (tau == 0) {
       world_.restore(start);
+      piece_work_ = 0;
     }
     // Another hinge may have crossed even earlier; then locate that one inside [0, tau].
     std::vector<double> now;
@@ -487,7 +541,7 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
 }
 
 // Algorithm 1's action for a hinge that entered a forbidden quadrant: flip-flop (Algorithm 2) when the pair is
-// folded (|a + b| large), lock (Algorithm 3) when it is straight.
+// folded (|a + b| large), the stop (Algorithm 3's lock, or an impact) when it is straight.
 void Ladder::restructure(int k) {
   HingeInfo& h = hinges_[k];
   const int c = h.corner;
@@ -496,43 +550,131 @@ void Ladder::restructure(int k) {
     // Face (default): at the fold the two blocks meet face to face, both corner pairs at once, so the meeting
     // is a momentary weld (the combine on the hinged pair) before the old hinge is undone. Corner: only the far
     // corners meet (see FlipImpact).
-    double removed = 0;
+    const double before = blocks_kinetic();
     if (spec_.flip_impact == FlipImpact::Face) {
-      removed += world_.combine(particle(k - 1, c), particle(k, c)).energy_removed;
+      world_.combine(particle(k - 1, c), particle(k, c));
       world_.separate(particle(k - 1, c), particle(k, c));  // the weld lets go
     }
-    world_.separate(particle(k - 1, c), particle(k, c));                                  // Algorithm 2, line 1
-    removed += world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1), roll_radius()).energy_removed;  // lines 2-3
+    world_.separate(particle(k - 1, c), particle(k, c));                          // Algorithm 2, line 1
+    world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1), roll_radius());  // lines 2-3
     h.corner = c ^ 1;
     set_measure_coef(k);
     ++h.flips;
-    emit(EventKind::FlipFlop, k, removed);
+    emit(EventKind::FlipFlop, k, before - blocks_kinetic());
   } else {
-    const core::Restructure r = world_.combine(particle(k - 1, c), particle(k, c));
-    h.status = HingeStatus::Locked;
-    emit(EventKind::Lock, k, r.energy_removed);
+    meet_stop(k);
   }
 }
 
-// Algorithm 4's trigger: a lock lets go when its weld, instead of pushing block k out of the forbidden quadrant,
-// has to pull it back from turning into the allowed one. Turning block k by +dphi changes s by sigma (a.b) dphi,
-// so the allowed sense is -sign(sigma a.b).
-void Ladder::check_unlocks() {
-  std::vector<int> unlock;
-  for (size_t k = 1; k < hinges_.size(); ++k) {
-    if (hinges_[k].status != HingeStatus::Locked) continue;
-    const int kk = static_cast<int>(k), c = hinges_[k].corner;
-    const double moment = world_.weld_moment(particle(kk - 1, c), particle(kk, c));
-    const Vec2 a = (corner(kk - 1, c ^ 1) - corner(kk - 1, c)).normalized();
-    const Vec2 b = (corner(kk, c ^ 1) - corner(kk, c)).normalized();
-    const double allowed = side_sign(kk - 1, c) * a.dot(b) > 0 ? -1.0 : 1.0;
-    if (moment * allowed < -spec_.unlock_threshold) unlock.push_back(kk);
+// A straight pair turning into the forbidden half meets its stop, a one-sided contact (docs/model.md section 5). The
+// meeting is perfectly inelastic: the weld's velocity fix (Algorithm 3's combine) stops the pair's relative turn. The
+// contact then stays, as a lock, only if it has to keep pushing: if its moment at this instant pulls, the loads open
+// the pair by themselves and the weld is undone at once, so that the meeting is one impact. (Welding at every meeting
+// and letting go after the next step, as the model did before, made most meetings a lock and an unlock one step
+// apart.)
+void Ladder::meet_stop(int k) {
+  const int c = hinges_[k].corner;
+  const double before = blocks_kinetic();
+  world_.combine(particle(k - 1, c), particle(k, c));
+  // Met again at the instant it was let go (an impact or an unlock): its moment pulled, yet the free motion from that
+  // very state turned the pair straight back into the stop (the loads change sign there), so the contact holds. The
+  // world is at the state of that release, so this meeting removes nothing; the release is taken back if its event
+  // is still to be taken. (Without this, a pair whose moment pulls by a hair could meet its stop again and again.)
+  if (released_at_[static_cast<size_t>(k)] == world_.time()) {
+    hinges_[k].status = HingeStatus::Locked;
+    if (!take_back_release(k))
+      emit(EventKind::Lock, k, before - blocks_kinetic(), "pressed: let go at this instant, the free motion turned "
+                                                          "the pair straight back into the stop");
+    return;
   }
-  for (int k : unlock) {
+  contact_moments(moments_, k);
+  const double moment = moments_[static_cast<size_t>(k)];
+  if (moment >= -spec_.unlock_threshold) {
+    hinges_[k].status = HingeStatus::Locked;
+    emit(EventKind::Lock, k, before - blocks_kinetic(), "pressed with " + format_number(moment) + " N m");
+    return;
+  }
+  world_.separate(particle(k - 1, c), particle(k, c));
+  released(k);
+  emit(EventKind::Impact, k, before - blocks_kinetic(), "pulled open with " + format_number(-moment) + " N m");
+}
+
+void Ladder::released(int k) { released_at_[static_cast<size_t>(k)] = world_.time(); }
+
+// Takes back hinge k's release at this instant, if its event is still to be taken: an impact becomes the lock it
+// turned out to be (one event, with the meeting's energy), an unlock is dropped (the lock goes on). False if there is
+// no such event.
+bool Ladder::take_back_release(int k) {
+  for (auto e = events_.rbegin(); e != events_.rend() && e->t == world_.time(); ++e) {
+    if (e->hinge != k) continue;
+    if (e->kind == EventKind::Unlock) {
+      events_.erase(std::next(e).base());
+      return true;
+    }
+    if (e->kind != EventKind::Impact) return false;
+    const auto from = static_cast<size_t>(EventKind::Impact), to = static_cast<size_t>(EventKind::Lock);
+    for (Losses* l : {&losses_, &since_flip_}) {
+      l->removed[from] -= e->energy_removed;
+      l->removed[to] += e->energy_removed;
+    }
+    e->kind = EventKind::Lock;
+    e->detail = "pressed: the free motion turned the pair straight back into the stop (" + e->detail + " at first)";
+    return true;
+  }
+  return false;
+}
+
+// The moment [N m] that the contact of each locked hinge, and of hinge `meeting`, welded a moment ago, carries at this
+// instant (index k; 0 for the others), signed by contact_moment(). It comes from the hinge forces of the index-1
+// equations: one explicit Euler step of a thousandth of the step under way, with nothing projected, on a copy of the
+// world. Its velocity change is exactly that step times the accelerations at its start, so World::weld_moment() over it
+// is the instantaneous moment, free of any solver tolerance. (Over a step of the scene's own integrator the moment is a
+// mean over that step, so a lock would let go up to a step late and a meeting could be judged by loads that come later;
+// over a short one, the impulse that closes a hinge gap of up to the solver's tolerance would swamp it.)
+void Ladder::contact_moments(std::vector<double>& moments, int meeting) {
+  moments.assign(hinges_.size(), 0.0);
+  probe_ = world_;  // a copy (its buffers reused), so that the world keeps its own last step's figures and caches
+  core::Options euler = world_.options();
+  euler.integrator = core::Integrator::Euler;
+  euler.stabilization = core::Stabilization::None;
+  euler.adaptive = false;
+  probe_.set_options(euler);
+  probe_.step(1e-3 * step_h_, false);
+  for (size_t k = 1; k < hinges_.size(); ++k)
+    if (hinges_[k].status == HingeStatus::Locked || static_cast<int>(k) == meeting)
+      moments[k] = contact_moment(probe_, static_cast<int>(k));
+}
+
+// The moment [N m] the weld of hinge k carried over `world`'s last step, signed so that > 0 pushes block k out of the
+// forbidden half (a contact's sense) and < 0 pulls it back in. Turning block k by +dphi changes s by
+// sigma (a.b) dphi, so the allowed sense is -sign(sigma a.b).
+double Ladder::contact_moment(const core::World& world, int k) const {
+  const int c = hinges_[k].corner;
+  const double moment = world.weld_moment(particle(k - 1, c), particle(k, c));
+  const Vec2 a = (corner(k - 1, c ^ 1) - corner(k - 1, c)).normalized();
+  const Vec2 b = (corner(k, c ^ 1) - corner(k, c)).normalized();
+  return side_sign(k - 1, c) * a.dot(b) > 0 ? -moment : moment;
+}
+
+// Algorithm 4's trigger: after each step, a lock lets go as soon as its contact, instead of pushing block k out of the
+// forbidden quadrant, has to pull it back in (a contact cannot pull). One at a time, the one pulled hardest first,
+// each time with the moments found anew: letting one lock go changes what its neighbours carry (a lock next to it
+// no longer carries the block beyond), and letting several go on the moments of the welded chain freed pairs that
+// the loads still pressed (double-ripple.toml: a pair let go and met its stop again at the same instant).
+void Ladder::check_unlocks() {
+  const auto locked = [](const HingeInfo& h) { return h.status == HingeStatus::Locked; };
+  while (std::any_of(hinges_.begin(), hinges_.end(), locked)) {
+    contact_moments(moments_);
+    int k = -1;
+    for (size_t j = 1; j < hinges_.size(); ++j)
+      if (locked(hinges_[j]) && moments_[j] < -spec_.unlock_threshold && (k < 0 || moments_[j] < moments_[k]))
+        k = static_cast<int>(j);
+    if (k < 0) return;
     const int c = hinges_[k].corner;
     world_.separate(particle(k - 1, c), particle(k, c));
     hinges_[k].status = HingeStatus::Hinged;
-    emit(EventKind::Unlock, k, 0);
+    released(k);
+    emit(EventKind::Unlock, k, 0, "pulled open with " + format_number(-moments_[k]) + " N m");
   }
 }
 

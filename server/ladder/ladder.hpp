@@ -15,8 +15,9 @@
 // unit vector from the hinged corner along the length, and sigma = cross(e_c, w_c) of block k-1 (+1 or -1: the
 // side its body lies on), s = sigma * cross(a, b) is <= 0 in the allowed half and crosses zero only when the pair
 // is straight (a = -b) or folded (a = b). Algorithm 1 acts when s > 0: flip-flop if |a + b| is large (folded),
-// lock if small (straight). Crossings are located in time so the restructure happens where s = 0: at that instant
-// the far corners of a folded pair coincide, and the flip-flop moves the hinge there without any position jump.
+// else the pair meets its straight stop, a one-sided contact: an impact, or a lock while the loads press it there.
+// Crossings are located in time so the restructure happens where s = 0: at that instant the far corners of a folded
+// pair coincide, and the flip-flop moves the hinge there without any position jump.
 #pragma once
 
 #include "core/world.hpp"
@@ -63,7 +64,9 @@ struct LadderSpec {
   FlipImpact flip_impact = FlipImpact::Face;
   bool logic = true;           // Algorithm 1: flip-flops, locks and unlocks
   double tip_duration = 0.3;   // [s] for the hand to turn the top block through 180 degrees
-  double unlock_threshold = 1e-5;  // [N m] a lock lets go once its weld pulls harder than this
+  // [N m] a meeting with the straight stop is a lock unless the stop would have to pull harder than this, and a lock
+  // lets go once it would
+  double unlock_threshold = 1e-5;
   double capture_distance = 0.005; // [m] farthest apart two corners may be for a join
   // Hinge particles sit this fraction of the thickness in from the edge: 0 is the paper's corners, 0.5 the middle
   // of the block's end, near where the real toy's ribbons cross (paper, section 4). Corner pivots make each
@@ -76,7 +79,12 @@ struct LadderSpec {
   double tilt = 0;           // initial rotation of the whole column about its top-left corner [rad]
 };
 
-enum class EventKind { FlipFlop, Lock, Unlock, Break, Join, SolverWarning };
+// Impact: a straight pair met its stop and the loads pull it open again, so the contact does not stay (one event,
+// the energy of the meeting removed); Lock: it met the stop and the loads press it there, so the pair is held
+// straight until an Unlock (docs/model.md section 5).
+enum class EventKind { FlipFlop, Impact, Lock, Unlock, Break, Join, SolverWarning };
+inline constexpr int kEventKinds = 7;
+static_assert(static_cast<int>(EventKind::SolverWarning) + 1 == kEventKinds, "kEventKinds counts EventKind");
 const char* to_string(EventKind);
 
 struct Event {
@@ -85,6 +93,20 @@ struct Event {
   int hinge = 0;              // hinge k joins blocks k-1 and k; hinge 0 is the top block's hold or pin
   double energy_removed = 0;  // [J] by the velocity fix of a restructure
   std::string detail;
+};
+
+// Energy the blocks lost [J], by where it went: each kind of event's velocity fix (a flip-flop's landing, an impact
+// or a lock against the stop, a join), and the motion between events (damping, hinge friction and the integrator's
+// own error: over each step, the energy at its start plus the work the hand and the users' forces put in, less the
+// energy at its end).
+struct Losses {
+  std::array<double, kEventKinds> removed{};  // by EventKind
+  double motion = 0;
+  double total() const {
+    double sum = motion;
+    for (double r : removed) sum += r;
+    return sum;
+  }
 };
 
 enum class HingeStatus { Hinged, Locked, Broken };
@@ -153,6 +175,11 @@ class Ladder {
   bool held() const;
   double hinge_measure(int k) const;  // s of the class comment (> 0 means inside a forbidden quadrant)
   double energy() const { return world_.kinetic_energy() + world_.potential_energy(); }
+  // Every loss since construction, and the part of it up to the last flip-flop with the number of flip-flops (each
+  // flip-flop's event says what was lost since the one before).
+  const Losses& losses() const { return losses_; }
+  double lost_by_last_flip() const { return lost_by_last_flip_; }
+  int flip_flops() const { return flip_flops_; }
   std::vector<Event> take_events();
   const core::World& world() const { return world_; }
   core::World& world() { return world_; }
@@ -170,6 +197,13 @@ class Ladder {
   double measure(int k, const core::Rot& qa, const core::Rot& qb) const;
   double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
   void restructure(int k);
+  void meet_stop(int k);
+  void released(int k);
+  bool take_back_release(int k);
+  void contact_moments(std::vector<double>& moments, int meeting = -1);
+  double contact_moment(const core::World& world, int k) const;
+  double blocks_kinetic() const;
+  void book_motion(const core::Energy& e0);
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
   void advance_by(double h);  // advance() without the grips' forces and the adaptive walk
@@ -194,6 +228,19 @@ class Ladder {
   // step. The outermost is also the start that advance_by() locates events from.
   std::array<core::Snapshot, kMaxHalvings + 1> before_;
   double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
+  double inertia_factor_ = 0;  // a block's moment of inertia about its centre over its mass [m^2]
+  double step_h_ = 0;          // the step advance_by() is taking (contact_moments() steps a thousandth of it)
+  core::World probe_;          // contact_moments()'s copy of the world for its trial step (reused buffers)
+  std::vector<double> moments_;  // contact_moments()'s answer (reused)
+  // Per hinge, when its contact was last let go (an impact or an unlock): a meeting at that same instant means that the
+  // free motion turned the pair straight back in, so the contact must hold (meet_stop()).
+  std::vector<double> released_at_;
+  // The energy ledger (losses()): the work the accepted steps of the piece under way put in, what was lost since the
+  // last flip-flop (reported with the next one), and the total at the last flip-flop.
+  double piece_work_ = 0;
+  Losses losses_, since_flip_;
+  double lost_by_last_flip_ = 0;
+  int flip_flops_ = 0;
   std::vector<Grip> grips_;  // sorted by block
   Vec2 unit_local(int i, int pair) const;
   // Per hinge k >= 1, for its present corner: sigma cross(u_a, u_b) and sigma u_a.u_b, so that measure() is two

@@ -88,7 +88,8 @@ constexpr std::array kKeys{
     KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = above(0),
            .help = "time the hand takes to turn the top block over [s]"},
     KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
-           .help = "weld moment above which a lock lets go [N m]"},
+           .help = "pull of a straight pair's contact above which a lock lets go, or a meeting with the stop is an "
+                   "impact [N m]"},
     KeyDef{.name = "ladder.capture_distance", .kind = Kind::Number, .range = at_least(0),
            .help = "farthest apart two corners may be for a join [m]"},
     // A radian per 1 ms step at 1000 rad/s (extremes_test folds through the singular configuration so); at 1e4 the

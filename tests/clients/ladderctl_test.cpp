@@ -80,8 +80,8 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"watch everything", 2, "WHAT"},
       {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
-      {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, lock, unlock, break, join, "
-                                            "solver_warning)"},
+      {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, impact, lock, unlock, break, "
+                                            "join, solver_warning)"},
   };
   for (const Case& c : cases) {
     const Result r = ctl(c.args);
@@ -128,7 +128,7 @@ TEST_F(Ladderctl, AMistypedCommandSuggestsTheNearestAndListsThemAll) {
 }
 
 // watch events: a heading that says what is watched, then only the kinds asked for (here the ripple's flip-flops,
-// none of the locks and unlocks that come with it).
+// none of the impacts, locks and unlocks that come with it).
 TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   ASSERT_EQ(ctl("tip").code, 0);
   const Result r = run("watch events --kinds flip_flop" + where_ + " & pid=$!; sleep 3; kill -INT $pid; wait $pid");
@@ -137,6 +137,7 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
             std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find("flip_flop       hinge 5"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(" s  impact "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  lock "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
 }

@@ -46,17 +46,22 @@ class Offline : public ::testing::Test {
 };
 
 // The classic scene for 10 s: the events name hinges 1..5 flipping in order; the trajectory has its exact header and
-// one row per block every 10 ms; the summary has every documented key with sane values.
+// one row per block every 10 ms; the summary has every documented key with sane values, its energy lost by each kind
+// of event the sum of those events' energies, and each flip-flop's line what was lost since the last one.
 TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
   const Result r = ladderd("--offline --quiet --scene " + kScenes + "classic.toml --duration 10 --events " +
                            path("ev.jsonl") + " --trajectory " + path("traj.csv") + " --summary " + path("sum.json"));
   ASSERT_EQ(r.code, 0) << r.output;
   std::map<int, double> first;
+  std::map<std::string, double> removed;  // kind -> the sum of its events' energy_removed
   std::istringstream events(slurp(path("ev.jsonl")));
   for (std::string line; std::getline(events, line);) {
     const json e = json::parse(line);
     ASSERT_TRUE(e.contains("t") && e.contains("kind") && e.contains("hinge") && e.contains("energy_removed")) << line;
-    if (e["kind"] == "flip_flop" && !first.count(e["hinge"].get<int>())) first[e["hinge"]] = e["t"];
+    removed[e["kind"]] += e["energy_removed"].get<double>();
+    if (e["kind"] != "flip_flop") continue;
+    EXPECT_EQ(e["detail"].get<std::string>().rfind("lost ", 0), 0u) << line;
+    if (!first.count(e["hinge"].get<int>())) first[e["hinge"]] = e["t"];
   }
   ASSERT_EQ(first.size(), 5u);
   for (int k = 2; k <= 5; ++k) EXPECT_GT(first[k], first[k - 1]);
@@ -90,6 +95,17 @@ TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
   // The hand's tip does work on the ladder, at most lifting every block by one length: N m g L = 0.094 J.
   EXPECT_LT(std::abs(s["energy_final_J"].get<double>() - s["energy_initial_J"].get<double>()), 6 * 0.025 * 9.81 * 0.064);
   EXPECT_EQ(s["events"]["flip_flop"], 5);
+  const json& lost = s["energy_lost_J"];
+  double parts = 0;
+  for (const char* kind : {"flip_flop", "impact", "lock", "join"}) {
+    EXPECT_NEAR(lost[kind].get<double>(), removed[kind], 1e-15) << kind;
+    parts += lost[kind].get<double>();
+  }
+  EXPECT_GT(lost["impact"].get<double>(), 0);
+  EXPECT_GT(lost["motion"].get<double>(), 0);  // the drag
+  EXPECT_NEAR(lost["total"].get<double>(), parts + lost["motion"].get<double>(), 1e-15);
+  EXPECT_GT(s["energy_lost_per_flip_flop_J"].get<double>(), 0);
+  EXPECT_LT(s["energy_lost_per_flip_flop_J"].get<double>(), lost["total"].get<double>() / 5 + 1e-15);
 }
 
 TEST_F(Offline, SetOverridesTheScene) {

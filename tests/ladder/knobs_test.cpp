@@ -227,9 +227,9 @@ TEST(Adaptive, GlobalErrorFollowsTheTolerance) {
 
 // Large frames with the adaptive step keep the classic toy's ripple: at sim.dt = 50 ms (the server ticking at
 // 20 Hz), with sim.error_tolerance = 1e-6 m, the same five flip-flops at the same hinges in the same order as fixed
-// 1 ms steps, each within 2 ms of its time there (measured with SHAKE: 0.8 ms at most; with the midpoint step the
-// adaptive run's last two flip-flops come 5 ms after the fixed run's, and 9 ms after those of a run at 0.1 ms:
-// docs/tradeoff.md). Each adaptive sub-step is checked by
+// 0.1 ms steps, each within 2 ms of its time there (measured with SHAKE: 1.3 ms at most; fixed 1 ms steps, first
+// order, put the fourth 4.8 ms early, the adaptive run 1.8 ms, against a run at 0.01 ms; with the midpoint step the
+// adaptive run's last two come 3.5 and 2.2 ms early). Each adaptive sub-step is checked by
 // Algorithm 1 as a step of its own; without that, crossings would be looked for once per 50 ms (fixed 50 ms steps
 // give seven flip-flops, not five).
 TEST(Adaptive, FiftyMillisecondFramesKeepTheClassicRipple) {
@@ -244,7 +244,7 @@ TEST(Adaptive, FiftyMillisecondFramesKeepTheClassicRipple) {
     EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9);
     return out;
   };
-  const auto fixed = flips(shipped("classic.toml", {"sim.integrator=symplectic_euler"}));
+  const auto fixed = flips(shipped("classic.toml", {"sim.integrator=symplectic_euler", "sim.dt=0.0001"}));
   const auto adaptive = flips(shipped("classic.toml", {"sim.integrator=symplectic_euler", "sim.dt=0.05",
                                                        "sim.adaptive=true", "sim.error_tolerance=1e-6"}));
   ASSERT_EQ(fixed.size(), 5u);
