@@ -56,10 +56,9 @@ Run run_one(const std::string& text, const std::string& source, int blocks, doub
     std::vector<std::string> set{"ladder.blocks=" + std::to_string(blocks), "damping.linear=" + fmt(drag, "%.17g"),
                                  "damping.angular=" + fmt(drag, "%.17g")};
     scene::Scene base = scene::parse_scene(text, source, set);
-    if (radius_fraction > 0) {
-      set.push_back("ladder.hinge=rolling");
-      set.push_back("ladder.end_radius=" + fmt(radius_fraction * base.ladder.thickness, "%.17g"));
-    }
+    // Both keys every time: the scene may have rolling hinges of its own.
+    set.push_back(radius_fraction > 0 ? "ladder.hinge=rolling" : "ladder.hinge=corner");
+    set.push_back("ladder.end_radius=" + fmt(radius_fraction * base.ladder.thickness, "%.17g"));
     scene::Simulation sim(scene::parse_scene(text, source, set));
     const model::LadderSpec& spec = sim.ladder().spec();
     r.released_per_flip = spec.mass * sim.scene().options.gravity.norm() * spec.length;

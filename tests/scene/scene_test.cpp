@@ -126,7 +126,7 @@ TEST(ShippedScenes, FreeChainStartsAsDescribed) {
 }
 
 TEST(ShippedScenes, EveryOneBuildsALadder) {
-  for (const char* name : {"classic", "double-ripple", "long", "free-chain"}) {
+  for (const char* name : {"classic", "double-ripple", "long", "free-chain", "toy-1889", "tall", "tall-double-ripple"}) {
     SCOPED_TRACE(name);
     const Scene s = load_scene(scene_path(name));
     EXPECT_NO_THROW(model::Ladder(s.ladder, s.options));
