@@ -13,6 +13,8 @@ set(LADDER_ETC_FULL ${CMAKE_INSTALL_FULL_SYSCONFDIR}/ladder)
 
 install(FILES ${PROJECT_SOURCE_DIR}/config/scenes/classic.toml ${PROJECT_SOURCE_DIR}/config/scenes/double-ripple.toml
               ${PROJECT_SOURCE_DIR}/config/scenes/free-chain.toml ${PROJECT_SOURCE_DIR}/config/scenes/long.toml
+              ${PROJECT_SOURCE_DIR}/config/scenes/toy-1889.toml ${PROJECT_SOURCE_DIR}/config/scenes/tall.toml
+              ${PROJECT_SOURCE_DIR}/config/scenes/tall-double-ripple.toml
         DESTINATION ${CMAKE_INSTALL_DATADIR}/ladder/scenes)
 install(FILES ${PROJECT_SOURCE_DIR}/config/cyclonedds.xml ${PROJECT_SOURCE_DIR}/config/cyclonedds-network.xml
               ${PROJECT_SOURCE_DIR}/config/cyclonedds-docker.xml

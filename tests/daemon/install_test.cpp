@@ -46,6 +46,8 @@ TEST_F(Installed, TheLayoutIsThere) {
   for (const char* f : {"bin/ladderd", "bin/ladderctl", "bin/ladder-view", "etc/ladder/ladderd.toml",
                         "share/ladder/scenes/classic.toml", "share/ladder/scenes/double-ripple.toml",
                         "share/ladder/scenes/long.toml", "share/ladder/scenes/free-chain.toml",
+                        "share/ladder/scenes/toy-1889.toml", "share/ladder/scenes/tall.toml",
+                        "share/ladder/scenes/tall-double-ripple.toml",
                         "share/ladder/cyclonedds.xml", "share/ladder/cyclonedds-network.xml",
                         "lib/systemd/system/ladderd.service", "lib/systemd/system/ladderd@.service",
                         "share/doc/ladder/install.md"})

@@ -84,9 +84,11 @@ TEST(ShippedScenes, DoubleRippleTipsTwice) {
 TEST(ShippedScenes, LongHasAThousandBlocks) {
   const Scene s = load_scene(scene_path("long"));
   EXPECT_EQ(s.ladder.blocks, 1000);
-  EXPECT_DOUBLE_EQ(s.ladder.length, 0.064);
-  EXPECT_DOUBLE_EQ(s.dt, 0.00025);  // the step its stiff top needs (docs/benchmarks.md)
-  EXPECT_DOUBLE_EQ(s.ladder.hinge_inset, 0.4);
+  EXPECT_DOUBLE_EQ(s.ladder.length, 0.092);
+  EXPECT_DOUBLE_EQ(s.ladder.thickness, 0.0025);
+  EXPECT_DOUBLE_EQ(s.dt, 0.001);  // the midpoint integrator holds it at 1 ms (docs/benchmarks.md)
+  EXPECT_EQ(s.ladder.hinge, model::HingeKind::Rolling);
+  EXPECT_DOUBLE_EQ(s.ladder.end_radius, 0.001);
   EXPECT_DOUBLE_EQ(s.options.linear_damping, 0.1);
   EXPECT_DOUBLE_EQ(s.options.angular_damping, 0.1);
   ASSERT_EQ(s.timeline.size(), 1u);
