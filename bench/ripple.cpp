@@ -64,7 +64,10 @@ Run run_one(const std::string& text, const std::string& source, int blocks, doub
     r.released_per_flip = spec.mass * sim.scene().options.gravity.norm() * spec.length;
     std::map<int, double> first;
     std::vector<std::pair<double, double>> removed;  // (t, energy) of every event, and the drag's per step
-    while (sim.time() < duration - 1e-9) {
+    // A run ends at `duration`, or once the ripple has stalled: no hinge has flip-flopped for the first time in the
+    // last 5 s (measured: one flip takes 0.1 to 0.2 s on every ladder of docs/ripple.md).
+    double last_new = 0;
+    while (sim.time() < duration - 1e-9 && !(first.size() > 0 && sim.time() > last_new + 5)) {
       sim.step();
       const double dissipated = sim.ladder().world().last_step().dissipated;
       if (dissipated != 0) removed.push_back({sim.time(), dissipated});
@@ -72,7 +75,7 @@ Run run_one(const std::string& text, const std::string& source, int blocks, doub
         switch (e.kind) {
           case model::EventKind::FlipFlop:
             ++r.flips;
-            first.emplace(e.hinge, e.t);
+            if (first.emplace(e.hinge, e.t).second) last_new = e.t;
             break;
           case model::EventKind::Lock: ++r.locks; break;
           case model::EventKind::Unlock: ++r.unlocks; break;
@@ -229,13 +232,15 @@ int main(int argc, char** argv) {
   std::string scene_path = LADDER_SOURCE_DIR "/config/scenes/classic.toml", out = "out/ripple";
   std::vector<int> blocks{6, 16, 64, 256, 1000};
   std::vector<double> radii{0, 0.25, 0.5}, drags{0, 0.1};
-  double duration = 0;  // 0: 2 s plus 0.1 s per block
+  double duration = 0;  // 0: 2 s plus 0.3 s per block
   app.add_option("--scene", scene_path, "the scene to start from")->check(CLI::ExistingFile);
   app.add_option("--blocks", blocks, "ladder.blocks values")->check(CLI::Range(2, 100000));
   app.add_option("--radius", radii, "ladder.end_radius values, as fractions of the thickness (0: corner hinges)")
       ->check(CLI::Range(0.0, 0.5));
   app.add_option("--drag", drags, "damping.linear = damping.angular values [1/s]")->check(CLI::Range(0.0, 100.0));
-  app.add_option("--duration", duration, "simulated time per run [s] (default: 2 s + 0.1 s per block)")
+  app.add_option("--duration", duration,
+                 "simulated time per run [s] (default: 2 s + 0.3 s per block); a run whose ripple has stalled, no new "
+                 "hinge flip-flopping for 5 s, ends there")
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--out", out, "output directory");
   CLI11_PARSE(app, argc, argv);
@@ -250,7 +255,7 @@ int main(int argc, char** argv) {
   for (const double d : drags)
     for (const double f : radii)
       for (const int n : blocks) {
-        const double t = duration > 0 ? duration : 2 + 0.1 * n;
+        const double t = duration > 0 ? duration : 2 + 0.3 * n;
         runs.push_back(run_one(text.str(), scene_path, n, f, d, t));
         const Run& r = runs.back();
         std::fprintf(stderr, "[%zu/%zu %4.0f s] N = %d, r = %g T, drag %g /s: %s\n", runs.size(), total,
