@@ -125,7 +125,7 @@ struct Snapshot {
   double t = 0;
   std::uint64_t structure = 0;
   double adaptive_h = 0;  // the adaptive step's next trial sub-step: a redone step chooses the same sub-steps
-  std::vector<Vec2> hinge_forces;  // the midpoint step's first guess: a redone step starts its solve from the same
+  std::vector<Vec2> hinge_forces;  // the midpoint step's first guess: a redone step starts its solve from the same one
 };
 
 // Per-step solver figures, for statistics and warnings.
@@ -268,7 +268,6 @@ class World {
   double angular_momentum(const std::vector<int>& parts, const Vec2& about) const;
   double max_hinge_error() const;   // largest gap of a hinge or weld: two hinged particles' distance (rolling: its
                                     // arc centres' distance from 2 r along the rolling direction) [m]
-  double roll_radius(int joint) const { return joints_[joint].radius; }  // 0 for a plain hinge
   bool finite() const;              // no NaN or infinity anywhere in the state
 
   // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
@@ -486,7 +485,7 @@ class World {
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
   // The midpoint step's mean hinge forces over the last step [N] (its impulses over h), per row: the next step's first
-  // guess, which saves it most of its Newton iterations (a chain at rest needs none). Saved in snapshots, so that a
+  // guess, which saves it Newton iterations wherever the forces change little from step to step. Saved in snapshots, so that a
   // redone step, a re-simulation and a resumed log (a re-run from the start) take the same bits; carried across a
   // rebuild for the hinges that remain, zero for a new one.
   std::vector<Vec2> hinge_force_;
