@@ -198,6 +198,14 @@ void Client::take_states() {
         ++forged_;  // our server's writer is still there: this is someone else's
         return;
       } else if (const auto p = transport::writer_participant(state_r_.entity(), info.publication_handle)) {
+        if (server_ && state_ && key_of(*server_) != key_of(*p)) {
+          candidate_states_[key_of(*server_)] = std::move(*state_);  // kept for connected()
+          state_.reset();
+          if (const auto back = candidate_states_.find(key_of(*p)); back != candidate_states_.end()) {
+            state_ = std::move(back->second);  // its storage is reused below
+            candidate_states_.erase(back);
+          }
+        }
         server_ = p;
         server_writer_ = info.publication_handle;
         confirmed_ = false;
@@ -205,7 +213,10 @@ void Client::take_states() {
         const auto seen = std::find_if(candidates_.begin(), candidates_.end(),
                                        [&](const auto& c) { return key_of(c.first) == k; });
         if (seen != candidates_.end()) candidates_.erase(seen);
-        if (candidates_.size() >= kMaxCandidates) candidates_.erase(candidates_.begin());
+        if (candidates_.size() >= kMaxCandidates) {
+          candidate_states_.erase(key_of(candidates_.front().first));
+          candidates_.erase(candidates_.begin());
+        }
         candidates_.emplace_back(*p, info.publication_handle);
         if (const auto it = scenes_.find(k); it != scenes_.end()) scene_ = it->second;
         else scene_.reset();  // the previous server's does not describe this one
@@ -332,13 +343,17 @@ bool Client::connected() {
       if (!server_ || key_of(*server_) != key_of(c->first)) {
         server_ = c->first;
         server_writer_ = c->second;
-        state_.reset();  // another participant's: wait for the server's own
+        // Its latest State, if kept; else wait for its next (state_ is another participant's).
+        const auto kept = candidate_states_.find(key_of(c->first));
+        if (kept != candidate_states_.end()) state_ = std::move(kept->second);
+        else state_.reset();
         scene_ = scenes_.at(key_of(c->first));
       }
       confirmed_ = true;
     }
     if (!confirmed_) return false;
     candidates_.clear();
+    candidate_states_.clear();
   }
   if (!state_ || !scene_) return false;
   if (scene_->replay || !may_command()) return true;

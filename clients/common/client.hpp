@@ -183,6 +183,9 @@ class Client {
   bool confirmed_ = false;  // connected() found server_ to be a server (see take_states)
   // Until then, the participants (and their State writers) that may be the server, the latest last.
   std::vector<std::pair<dds_guid_t, dds_instance_handle_t>> candidates_;
+  // And the latest State of each candidate but the latest (whose is state_): a paused server writes no new State, so
+  // the one it sent must be kept when another participant's States come after it.
+  std::map<Key, State> candidate_states_;
   // connected() said yes for this server's writer while the command writer had this many readers.
   dds_instance_handle_t connected_writer_ = 0;
   std::uint32_t connected_readers_ = 0;

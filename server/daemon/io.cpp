@@ -225,30 +225,38 @@ void Io::refuse_leftovers() {
   for (const Incoming& in : left) refuse(in.command, "ladderd stopped before it could take this command");
 }
 
+void Io::write_scene(const SceneOut& s) {
+  ladder_msg_SceneInfo m{};
+  copy_text(m.sim_id, sh_.config.sim_id);
+  m.generation = generation_ = s.generation;
+  copy_text(m.scene_name, s.name);
+  copy_text(m.description, s.description);
+  copy_text(m.server_version, kServerVersion);
+  m.blocks = static_cast<std::uint32_t>(s.blocks);
+  m.length = s.length;
+  m.thickness = s.thickness;
+  m.hinge_inset = s.inset;
+  transport::lend(m.masses, s.masses);
+  copy_text(m.top, s.top);
+  m.dt = s.dt;
+  m.physics_rate = s.rates.physics;
+  m.publish_rate = s.rates.publish;
+  m.real_time_factor = s.rates.real_time_factor;
+  copy_text(m.options, s.options);
+  written(scene_w_.try_write(m), "ladder/SceneInfo");
+  scene_written_ = Clock::now();
+}
+
 void Io::write_outbox() {
   {
     std::lock_guard lock(sh_.outbox_mutex);
     std::swap(out_, sh_.outbox);
   }
-  for (const SceneOut& s : out_.scenes) {
-    ladder_msg_SceneInfo m{};
-    copy_text(m.sim_id, sh_.config.sim_id);
-    m.generation = generation_ = s.generation;
-    copy_text(m.scene_name, s.name);
-    copy_text(m.description, s.description);
-    copy_text(m.server_version, kServerVersion);
-    m.blocks = static_cast<std::uint32_t>(s.blocks);
-    m.length = s.length;
-    m.thickness = s.thickness;
-    m.hinge_inset = s.inset;
-    transport::lend(m.masses, s.masses);
-    copy_text(m.top, s.top);
-    m.dt = s.dt;
-    m.physics_rate = s.rates.physics;
-    m.publish_rate = s.rates.publish;
-    m.real_time_factor = s.rates.real_time_factor;
-    copy_text(m.options, s.options);
-    written(scene_w_.try_write(m), "ladder/SceneInfo");
+  for (const SceneOut& s : out_.scenes) write_scene(s);
+  if (!out_.scenes.empty()) {
+    scene_ = out_.scenes.back();
+  } else if (scene_ && Clock::now() - scene_written_ >= kSceneRepeat) {
+    write_scene(*scene_);  // the same again (see io.hpp)
   }
   // A command is in the log, flushed to the file, before its ack goes out: an acknowledged command survives a
   // kill -9 (--resume replays it).

@@ -76,6 +76,7 @@ class Io {
   void forget_departed_senders();
   void refuse_leftovers();
   void write_outbox();
+  void write_scene(const SceneOut& s);
   void write_state();
   void refuse(const ladder_msg_Command& c, const std::string& reason);
   void answer(const ladder_msg_Command& c, const Answer& a);
@@ -99,6 +100,12 @@ class Io {
   transport::Waiter waiter_;
   std::uint64_t state_seq_ = 0, event_seq_ = 0;
   std::uint32_t generation_ = 0;
+  // The latest SceneInfo is written again every kSceneRepeat while nothing changes it. A reader's history is shared
+  // by every writer of the sim id (transport/dds.hpp, Side): a client whose one transient-local copy was pushed out
+  // by another participant's SceneInfos (a forger's, without DDS Security) has the server's again within a second.
+  static constexpr auto kSceneRepeat = std::chrono::seconds(1);
+  std::optional<SceneOut> scene_;
+  Clock::time_point scene_written_{};
   Outbox out_;
   std::unordered_map<dds_instance_handle_t, Sender> senders_;
   std::vector<dds_instance_handle_t> waiting_;  // the senders not ready yet

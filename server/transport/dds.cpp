@@ -93,22 +93,23 @@ void route_cyclone_log(void (*sink)(const char*), const char* topic) {
 
 std::uint64_t undecodable_samples() { return g_cyclone_log.undecodable.load(std::memory_order_relaxed); }
 
-void apply_profile(Qos& qos, Profile p) {
+void apply_profile(Qos& qos, Profile p, Side side) {
   dds_qos_t* q = qos.get();
   const dds_duration_t block = DDS_MSECS(100);  // longest a reliable write may wait for room (keep-last never does)
   switch (p) {
     case Profile::SceneInfo:
       dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
       dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
-      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, side == Side::Reader ? kSceneReaderDepth : 1);
       break;
     case Profile::State:
       // A reader that joins late gets the latest state only if both sides are reliable and transient-local
-      // (a best-effort reader receives no history: docs/network.md). Keep-last 1 on both sides means a slow
-      // reader is simply skipped ahead: the writer never waits for it and it never sees an old state.
+      // (a best-effort reader receives no history: docs/network.md). The writer keeps the last one only, so a slow
+      // reader is simply skipped ahead: the writer never waits for it. The reader keeps a few (dds.hpp, Side): a
+      // client takes them all and keeps the server's latest.
       dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, block);
       dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
-      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, side == Side::Reader ? kStateReaderDepth : 1);
       break;
     case Profile::Command:
       // Every command counts, so keep-all: a client whose server is slow to take its commands waits (up to 1 s),

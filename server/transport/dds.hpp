@@ -79,17 +79,26 @@ class Qos {
   dds_qos_t* q_;
 };
 
-// The QoS of each topic (docs/server.md, "Topics"); writer and reader of a topic use the same profile.
+// The QoS of each topic (docs/server.md, "Topics"); writer and reader of a topic use the same profile, but for the
+// depth of a keyed topic's reader history (see Side).
 enum class Profile {
-  SceneInfo,   // reliable, transient-local, keep-last 1
+  SceneInfo,   // reliable, transient-local, keep-last 1 (reader: kSceneReaderDepth)
   State,       // reliable, keep-last 1, transient-local (both sides: late joiners get the latest; a slow reader is
-               // skipped ahead, never waited for: see .cpp)
+               // skipped ahead, never waited for: see .cpp) (reader: kStateReaderDepth)
   Command,     // reliable, keep-all
   CommandAck,  // reliable, keep-last kAckDepth (a writer that never waits for a reader, see .cpp)
   Event,       // reliable, keep-last 64
   Stats,       // best-effort, keep-last 1
 };
-void apply_profile(Qos& q, Profile p);
+// A reader's history is per instance, and an instance is a sim id: every writer of a sim id shares it. A reader of
+// depth 1 keeps only the latest sample of all of them, so another participant publishing under the server's sim id
+// faster than the server (a forger, without DDS Security) would replace the server's every sample before the client
+// takes it, and the client would never find its server. The readers of SceneInfo and State therefore keep several
+// samples, so that the server's last one is still among them when the client takes (the writers keep one).
+enum class Side { Writer, Reader };
+inline constexpr std::int32_t kStateReaderDepth = 8;
+inline constexpr std::int32_t kSceneReaderDepth = 16;
+void apply_profile(Qos& q, Profile p, Side side = Side::Writer);
 // How many acknowledgements the server's writer keeps for readers that have not confirmed them yet. A reader further
 // behind than this loses the oldest (it was not taking them); a server's commands.burst stays below it.
 inline constexpr std::int32_t kAckDepth = 4096;
@@ -148,7 +157,7 @@ class Reader {
   Reader() = default;
   Reader(const Entity& participant, const Entity& topic, Profile p) {
     Qos q;
-    apply_profile(q, p);
+    apply_profile(q, p, Side::Reader);
     e_ = Entity(check(dds_create_reader(participant.get(), topic.get(), q.get(), nullptr), "create reader"));
   }
   // Takes every available sample (valid data only) and passes each to f(const T&, const dds_sample_info_t&),

@@ -799,7 +799,9 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
 // Another participant publishing a SceneInfo of another generation under the server's sim id, again and again (so
 // that it is always the latest the viewer has). The client takes SceneInfo only from its server's participant
 // (docs/security.md), so the viewer ignores it and draws the server's ladder within its --timeout. (It used to wait
-// for ever; then to give up at --timeout with code 3, the forged SceneInfo being the latest it had.)
+// for ever; then to give up at --timeout with code 3, the forged SceneInfo being the latest it had; then, under load,
+// to miss the server's one SceneInfo, pushed out of the reader's history by the forger's: the reader now keeps
+// several and the server writes its SceneInfo again every second, transport/dds.hpp and daemon/io.hpp.)
 TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
   const client::SceneInfo info = *client_->wait_scene_info(kAnswer);
   const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain_));
@@ -819,13 +821,13 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
   });
   for (const std::string& mode : {"--png " + out_ + ".png", std::string("--ascii --frames 1")}) {
     const auto t0 = std::chrono::steady_clock::now();
-    const Result r = shell(kViewer + where() + " --timeout 2 " + mode);
+    const Result r = shell(kViewer + where() + " --timeout 10 " + mode);
     const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_EQ(r.code, 0) << mode << ": " << r.output;
     EXPECT_NE(r.output.find("6 blocks"), std::string::npos) << mode << ": " << r.output;
     EXPECT_EQ(r.output.find("generation " + std::to_string(info.generation + 1000)), std::string::npos)
         << mode << ": " << r.output;
-    EXPECT_LT(took, 20) << mode << " waited " << took << " s with --timeout 2";
+    EXPECT_LT(took, 20) << mode << " waited " << took << " s with --timeout 10";
   }
   stop = true;
   forger.join();

@@ -73,11 +73,18 @@ class Security : public ::testing::Test {
                  args);
   }
 
-  // The server's command counter, from a Stats published after now.
-  std::uint64_t commands_received() {
-    const auto s = client_->wait_stats([](const ladder_msg_Stats&) { return true; }, kAnswer);
-    EXPECT_TRUE(s.has_value()) << "no Stats";
+  // The server's command counter, from the first Stats that counts at least `at_least` (a Stats taken just after a
+  // command was answered may have been written before it was received).
+  std::uint64_t commands_received(std::uint64_t at_least) {
+    const auto s =
+        client_->wait_stats([&](const ladder_msg_Stats& x) { return x.commands_received >= at_least; }, kAnswer);
+    EXPECT_TRUE(s.has_value()) << "no Stats counting " << at_least << " commands";
     return s ? s->commands_received : ~0ull;
+  }
+  // The same from the second Stats from now (Stats come once a second): written well after anything sent before.
+  std::uint64_t commands_received() {
+    EXPECT_TRUE(client_->wait_stats([](const ladder_msg_Stats&) { return true; }, kAnswer).has_value()) << "no Stats";
+    return commands_received(0);
   }
 
   static inline std::string pki_;
@@ -96,7 +103,7 @@ TEST_F(Security, ControllersCommandsAreAcknowledged) {
   const Result r = ctl("--security " + id("ctl") + " tip");
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("accepted at t = "), std::string::npos) << r.output;
-  EXPECT_EQ(commands_received(), 2u);
+  EXPECT_EQ(commands_received(2), 2u);
   EXPECT_EQ(client_->forged(), 0u);
 }
 
@@ -310,22 +317,18 @@ TEST_F(Security, WithoutSecurityAForgedAckIsNeverTaken) {
       client_->wait_state([](const client::State& s) { return s.step == Forger::kForgedStep; }, Millis(500));
   EXPECT_FALSE(st.has_value()) << "took a forged State";
   EXPECT_GT(client_->forged(), 100u * 100u / 2) << "the forger's acks did not arrive: the race was not run";
-  // ladderctl: never a forged answer (exit 1 or its text). Now and then (2 runs in about 50 here) a ladderctl under
-  // this flood finds no server within its timeout (exit 3; the forger's participant was then the only one it had
-  // seen): counted and allowed, as long as most runs get the server's answer.
-  int answered = 0;
+  // ladderctl: never a forged answer (exit 1 or its text), and every run finds the server. (About 1 run in 25 used
+  // to time out here: the paused server's one State was pushed out of ladderctl's one-sample State history by the
+  // forger's, or dropped when the forger's came after it; docs/security.md.)
   for (int k = 0; k < 10; ++k) {
     const auto t0 = Clock::now();
     const Result r = ctl("step 1", 10);
     std::printf("ladderctl run %d: exit %d after %.2f s\n", k, r.code,
                 std::chrono::duration<double>(Clock::now() - t0).count());
     EXPECT_EQ(r.output.find("FORGED"), std::string::npos) << "ladderctl printed a forged ack: " << r.output;
-    EXPECT_TRUE(r.code == 0 || r.code == 3) << r.output;
-    if (r.code != 0) continue;
+    EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("accepted at t = "), std::string::npos) << r.output;
-    ++answered;
   }
-  EXPECT_GE(answered, 8) << "ladderctl found the server in only " << answered << " of 10 runs";
   std::printf("forged acks written: %llu, ignored by the test's client: %llu\n",
               static_cast<unsigned long long>(forger.acks.load()),
               static_cast<unsigned long long>(client_->forged()));
