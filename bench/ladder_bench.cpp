@@ -12,12 +12,14 @@
 //  - LadderHeld: the server's default ladder (damped) hanging at rest in the hand, N = 10 000 and 100 000: what
 //    ladderd's loop costs between interventions. LadderTipped...: the 10 000-block ladder tipped, with the two
 //    integrators that run it at 1 ms.
+//  - ...Rolling: Ladder, LadderHeld and LadderTipped with rolling hinges (end radius 0.4 of the thickness), N = 1000
+//    and 10 000, against the same workloads with the paper's corner hinges (LadderHeld, LadderTipped also at 1000).
 //  - FreeChainStraight: config/scenes/free-chain.toml's chain of N blocks from its straight start under gravity,
 //    N = 1000 to 100 000; ...Shake: with symplectic_euler, the former default; LadderHeldShake likewise.
 //  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
 //    projection integrator on a hanging chain too stiff for SHAKE at 1 ms.
-// Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the largest hinge error after the run [m]
-// and the simulated time covered.
+// Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the solver's nonlinear iterations per step
+// (the last step's of each advance), the largest hinge error after the run [m] and the simulated time covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
 #include "core/chain3d.hpp"
 #include "free_chain.hpp"
@@ -65,8 +67,13 @@ std::unique_ptr<model::Ladder> ladder(int n, bool logic, bool fast_preset = fals
 void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   const int n = static_cast<int>(state.range(0));
   if (tip) l->tip();
-  for (auto _ : state) l->advance(1e-3);
+  double iterations = 0;
+  for (auto _ : state) {
+    l->advance(1e-3);
+    iterations += l->world().last_step().iterations;
+  }
   const double block_steps = static_cast<double>(state.iterations()) * n;
+  state.counters["iterations/step"] = iterations / static_cast<double>(state.iterations());
   state.counters["block_steps/s"] = benchmark::Counter(block_steps, benchmark::Counter::kIsRate);
   state.counters["max_hinge_error_m"] = l->world().max_hinge_error();
   state.counters["sim_time_s"] = l->time();
@@ -118,9 +125,16 @@ void LadderReduced(benchmark::State& state) {
 // The ladder as ladderd holds it between interventions, at N = 10 000 and 100 000: the server's default scene
 // (config/scenes/classic.toml's blocks and damping of 0.1 /s) hanging at rest in the hand, Algorithm 1 on, with
 // the default settings and with `reduced`. Nothing moves, so Newton converges at once: the floor of a step's cost.
-std::unique_ptr<model::Ladder> held_ladder(int n, bool reduced_integrator) {
+// With `rolling`, rolling hinges (ladder.hinge = "rolling") of end radius 0.4 of the thickness, as tall.toml's.
+model::LadderSpec rolling(model::LadderSpec spec) {
+  spec.hinge = model::HingeKind::Rolling;
+  spec.end_radius = 0.4 * spec.thickness;
+  return spec;
+}
+std::unique_ptr<model::Ladder> held_ladder(int n, bool reduced_integrator, bool rolling_hinges = false) {
   model::LadderSpec spec;
   spec.blocks = n;
+  if (rolling_hinges) spec = rolling(spec);
   core::Options o;
   o.linear_damping = o.angular_damping = 0.1;
   if (reduced_integrator) o = reduced(o);
@@ -144,6 +158,18 @@ void LadderTippedReduced(benchmark::State& state) {
 }
 // With the defaults (the midpoint integrator), which steps this tip at 1 ms.
 void LadderTipped(benchmark::State& state) { run(state, held_ladder(static_cast<int>(state.range(0)), false), true); }
+// The rolling hinge's cost against the corner hinge's: Ladder, LadderHeld and LadderTipped with rolling hinges.
+void LadderRolling(benchmark::State& state) {
+  model::LadderSpec spec;
+  spec.blocks = static_cast<int>(state.range(0));
+  run(state, std::make_unique<model::Ladder>(rolling(spec), core::Options{}), true);
+}
+void LadderHeldRolling(benchmark::State& state) {
+  run(state, held_ladder(static_cast<int>(state.range(0)), false, true), false);
+}
+void LadderTippedRolling(benchmark::State& state) {
+  run(state, held_ladder(static_cast<int>(state.range(0)), false, true), true);
+}
 
 // The free chain of config/scenes/free-chain.toml from its straight start under gravity (the stability
 // workload: it falls, swings and whips), with the defaults and with SHAKE (symplectic_euler), the former default,
@@ -197,6 +223,13 @@ BENCHMARK(LadderTippedProjection)->Arg(10000)->Iterations(200)->Unit(benchmark::
 BENCHMARK(LadderTippedReduced)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTipped)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderHeldShake)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderRolling)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeld)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldRolling)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldRolling)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTipped)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTippedRolling)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderTippedRolling)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(FreeChainStraight)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(FreeChainStraight)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
 BENCHMARK(FreeChainStraight)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
