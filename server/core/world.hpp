@@ -485,9 +485,9 @@ class World {
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
   // The midpoint step's mean hinge forces over the last step [N] (its impulses over h), per row: the next step's first
-  // guess, which saves it Newton iterations wherever the forces change little from step to step. Saved in snapshots, so that a
-  // redone step, a re-simulation and a resumed log (a re-run from the start) take the same bits; carried across a
-  // rebuild for the hinges that remain, zero for a new one.
+  // guess, which saves it Newton iterations wherever the forces change little from step to step. Saved in snapshots,
+  // so that a redone step, a re-simulation and a resumed log (a re-run from the start) take the same bits; carried
+  // across a rebuild for the hinges that remain, zero for a new one.
   std::vector<Vec2> hinge_force_;
   std::vector<BodyState> step_start_;
   std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them

@@ -109,7 +109,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   for (double m : spec.masses) require(std::isfinite(m) && m > 0, "ladder.masses must all be positive");
   require(std::isfinite(spec.tip_duration) && spec.tip_duration > 0, "ladder.tip_duration must be positive");
   require(std::isfinite(spec.kick_omega) && std::isfinite(spec.tilt), "initial conditions must be finite");
-  for (int i = 0; i < spec.blocks; ++i) mass_ += spec.masses.empty() ? spec.mass : spec.masses[i];
+  for (int i = 0; i < spec.blocks; ++i) mass_ += block_mass(i);
 
   require(std::isfinite(spec.hinge_inset) && spec.hinge_inset >= 0 && spec.hinge_inset < 0.5,
           "ladder.hinge_inset must be at least 0 and below 0.5");
@@ -156,7 +156,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   }
   const Rot tilt = Rot::of(spec.tilt);
   for (int i = 0; i < n; ++i) {
-    const double m = spec.masses.empty() ? spec.mass : spec.masses[i];
+    const double m = block_mass(i);
     PartDef def;
     for (int c = 0; c < 4; ++c) def.particles.push_back({m * corner_share, corner_local(i, c, 0.5 * L, 0.5 * W)});
     def.particles.push_back({m * (1 - 4 * corner_share), Vec2::Zero()});
@@ -327,7 +327,7 @@ double Ladder::blocks_kinetic() const {
   double e = 0;
   for (int i = 0; i < spec_.blocks; ++i) {
     if (world_.is_kinematic(i)) continue;
-    const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[static_cast<size_t>(i)];
+    const double m = block_mass(i);
     const double w = world_.part_omega(i);
     e += 0.5 * m * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w);
   }
@@ -852,7 +852,7 @@ void Ladder::apply(const Action& action) {
 void Ladder::apply_grips(double h) {
   for (const Grip& g : grips_) {
     const int part = g.block;
-    const double m = spec_.masses.empty() ? spec_.mass : spec_.masses[g.block];
+    const double m = block_mass(g.block);
     const double w = std::min(g.stiffness > 0 ? std::sqrt(g.stiffness / m) : 100.0, 0.2 / h);
     const core::Rot q = world_.part_rotation(part);
     const Vec2 r = q * g.local;

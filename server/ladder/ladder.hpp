@@ -228,6 +228,8 @@ class Ladder {
   // step. The outermost is also the start that advance_by() locates events from.
   std::array<core::Snapshot, kMaxHalvings + 1> before_;
   double mass_ = 0;  // [kg] of all the blocks, for diverged()'s floor
+  // Block i's mass [kg]: ladder.masses' entry, or ladder.mass when the scene lists none.
+  double block_mass(int i) const { return spec_.masses.empty() ? spec_.mass : spec_.masses[static_cast<size_t>(i)]; }
   double inertia_factor_ = 0;  // a block's moment of inertia about its centre over its mass [m^2]
   double step_h_ = 0;          // the step advance_by() is taking (contact_moments() steps a thousandth of it)
   core::World probe_;          // contact_moments()'s copy of the world for its trial step (reused buffers)
