@@ -170,4 +170,86 @@ class BlockTridiag {
   std::vector<Mat2> gain_;       // S_k^-1 U_k, reused by the back substitution
 };
 
+// The same block LU with 3x3 blocks and only the fused use: the midpoint step's Newton system when hinges roll
+// (midpoint.cpp). A rolling hinge's contact point turns with both of its bodies, so a body's angular equation depends
+// on its neighbours' turns too and cannot be eliminated body by body; the unknowns of row k are then its impulse (2)
+// and the turn of its body b (1), and the system is still block-tridiagonal. The pivots are not symmetric and mix
+// units (impulses and turns), so a pivot is judged singular against the product of its rows' norms (Hadamard's bound
+// on the determinant) and each row is shifted by a relative 1e-12 of its own norm.
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+
+class BlockTridiag3 {
+ public:
+  // As BlockTridiag::factor_forward(): row(k, d, l, u_prev, b) sets D_k, L_k = A(k,k-1), U_{k-1} = A(k-1,k) (zero
+  // when the rows share no body; not read at k = 0) and b_k. Only the gains S_k^-1 U_k are stored (backward() needs
+  // nothing else; 72 bytes a row instead of three times that, which is what a long chain's pass costs).
+  template <class RowFn>
+  int factor_forward(int n, RowFn&& row, std::vector<Vec3>& z) {
+    const auto un = static_cast<size_t>(n);
+    gain_.resize(un);
+    z.resize(un);
+    int regularised = 0;
+    Mat3 d, lower, u_prev, schur_inv;
+    Vec3 b;
+    for (int k = 0; k < n; ++k) {
+      row(k, d, lower, u_prev, b);
+      if (k > 0) {
+        gain_[k - 1].noalias() = schur_inv * u_prev;
+        d.noalias() -= lower * gain_[k - 1];
+        b.noalias() -= lower * z[k - 1];
+      }
+      regularised += invert(d, schur_inv) ? 1 : 0;
+      z[k].noalias() = schur_inv * b;
+    }
+    return regularised;
+  }
+
+  // As BlockTridiag::backward().
+  template <class Done>
+  void backward(std::vector<Vec3>& x, Done&& done) const {
+    const int n = static_cast<int>(x.size());
+    if (n == 0) return;
+    done(n - 1);
+    for (int k = n - 2; k >= 0; --k) {
+      x[k].noalias() -= gain_[k] * x[k + 1];
+      done(k);
+    }
+  }
+
+  // By cofactors: the inverse is the adjugate over the determinant. Singular when det^2 <= 1e-28 times the product
+  // of the rows' squared norms.
+  static bool invert(Mat3 m, Mat3& out) {
+    const double bound2 = m.row(0).squaredNorm() * m.row(1).squaredNorm() * m.row(2).squaredNorm();
+    double det = cofactors(m, out);
+    const bool regularised = !(det * det > 1e-28 * bound2);
+    if (regularised) {
+      for (int i = 0; i < 3; ++i) {
+        const double norm = m.row(i).norm();
+        m(i, i) += 1e-12 * (norm > 0 ? norm : 1.0);
+      }
+      det = cofactors(m, out);
+    }
+    out *= 1 / det;
+    return regularised;
+  }
+
+ private:
+  // Writes the adjugate of m to adj and returns the determinant.
+  static double cofactors(const Mat3& m, Mat3& adj) {
+    adj(0, 0) = m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1);
+    adj(0, 1) = m(0, 2) * m(2, 1) - m(0, 1) * m(2, 2);
+    adj(0, 2) = m(0, 1) * m(1, 2) - m(0, 2) * m(1, 1);
+    adj(1, 0) = m(1, 2) * m(2, 0) - m(1, 0) * m(2, 2);
+    adj(1, 1) = m(0, 0) * m(2, 2) - m(0, 2) * m(2, 0);
+    adj(1, 2) = m(0, 2) * m(1, 0) - m(0, 0) * m(1, 2);
+    adj(2, 0) = m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0);
+    adj(2, 1) = m(0, 1) * m(2, 0) - m(0, 0) * m(2, 1);
+    adj(2, 2) = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
+    return m(0, 0) * adj(0, 0) + m(0, 1) * adj(1, 0) + m(0, 2) * adj(2, 0);
+  }
+
+  std::vector<Mat3> gain_;  // S_k^-1 U_k
+};
+
 }  // namespace ladder::core

@@ -58,8 +58,12 @@ struct Levers {
 // bodies' half-angle tangents, the direction at the end u+ = u0 R(atan t_a + atan t_b) and kappa r ubar, the share
 // of the contact offset that each body's midpoint lever carries (ubar = (u0 + u+) / 2): 2 r (u+ - u0) =
 // 2 (t_a + t_b) perp(kappa r ubar) exactly, with kappa = 2 / (1 - t_a t_b + sqrt((1 + t_a^2)(1 + t_b^2))).
+// And the slopes of kappa r ubar in t_a and t_b, for the Newton matrix (the compiler drops them where unused):
+// d u+ / d t_a = perp(u+) / (1 + t_a^2), d kappa / d t_a = -(kappa^2 / 2) (t_a (1 + t_b^2) / s - t_b) with s the
+// square root above, and the same with a and b exchanged.
 struct Rolling {
   Vec2 end, mid;  // r u+ and kappa r ubar
+  Vec2 dmid_a, dmid_b;  // d(kappa r ubar) / d t_a and / d t_b
 };
 [[gnu::always_inline]] inline Rolling rolling(const Vec2& u0, double r, double ta, double tb) {
   const double s = std::sqrt((1 + ta * ta) * (1 + tb * tb)), c = 1 - ta * tb;
@@ -67,17 +71,21 @@ struct Rolling {
   const Vec2 turn(c * inv, (ta + tb) * inv);  // R(atan t_a + atan t_b)
   const Vec2 u1(turn.x() * u0.x() - turn.y() * u0.y(), turn.y() * u0.x() + turn.x() * u0.y());
   const double kappa = 2 / (c + s);
-  return {r * u1, (0.5 * kappa * r) * (u0 + u1)};
+  const Vec2 sum = u0 + u1, pu1 = perp(u1);
+  const double half_kk = 0.5 * kappa * kappa;
+  const double dka = half_kk * (tb - ta * (1 + tb * tb) * inv), dkb = half_kk * (ta - tb * (1 + ta * ta) * inv);
+  return {r * u1, (0.5 * kappa * r) * sum, (0.5 * r) * (dka * sum + (kappa / (1 + ta * ta)) * pu1),
+          (0.5 * r) * (dkb * sum + (kappa / (1 + tb * tb)) * pu1)};
 }
 
-// rolling_stiffness: in a body's turn stiffness (the `stiff` of its angular equation's Jacobian) a rolling row counts
-// with its arc centre's lever only. The contact's share of the moment turns with both bodies (kappa r ubar depends on
-// t_a + t_b), so half of its derivative belongs to the neighbour's turn, a cross term the body-by-body elimination
-// has no place for; the gaps' derivatives stay exact (d gap / d t_a = 2 k_a perp(end_a) with the contact in end_a).
-// Dropping the contact's term outright converged fastest of the shares tried: nonlinear iterations per step on
-// ladder-bench's rolling ladders of 1000 blocks, at rest in the hand and tipped, 7.3 and 8.5 with the whole
-// contact lever in `stiff`, 6.0 and 7.2 with half, 5.0 and 6.2 with a quarter, 5.0 and 6.1 with none (the corner
-// hinge's: 1.0 and 3.7). The answer is the same to the tolerance; only the path to it changes.
+// rolling_newton: a rolling row's contact offset kappa r ubar turns with both of its bodies, so each body's angular
+// residual depends on its neighbour's turn t as well as on its own: d rho_i / d t_j = -(h / 4 I_i) dmid_j x L_k
+// (and the hinge friction's -(h / 4 I_i) 2 c_f, there with corner hinges too). The body-by-body elimination of the
+// turns has no place for that term; leaving it out made Newton's method linear (ladder-bench's rolling ladders of
+// 1000 blocks, at rest in the hand and tipped: 5.0 and 6.1 iterations a step, the corner hinge's 1.0 and 3.7). With a
+// rolling row the step therefore keeps each row's body b's turn beside the row's impulse as unknowns, 3x3 blocks
+// still tridiagonal along a chain (BlockTridiag3), with every derivative exact: the Newton matrix is the Jacobian.
+// A chain's first body, when it moves, is eliminated into its first block exactly (it couples to nothing else).
 
 // Newton-matrix coupling of a body's two rows through it: hbar I + e perp(end) perp(mid)^T.
 [[gnu::always_inline]] inline Mat2 coupling(double ha, double e, const Vec2& end, const Vec2& mid) {
@@ -220,20 +228,29 @@ void World::step_midpoint(double h) {
   }
   m.stiff_coef.resize(nb);
   m.lift.resize(nb);
+  if (has_rolling_) {
+    m.jac.resize(nb);
+    m.couple_ab.resize(n);
+    m.couple_ba.resize(n);
+  }
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side.
   const auto finish_body = [&](int i, int prev, int next, double& worst_rho) HOT_INLINE {
     const double ti = m.t[i], k = 1 / (1 + ti * ti);
     Vec2 lin = Vec2::Zero();
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
+    // With rolling rows (rolling_newton above): sum of dmid_i x L over them, and dmid_j x L per row.
+    double own_roll = 0, couple_prev = 0, couple_next = 0;
     if (prev >= 0) {
       const Vec2& l = m.lam[prev];
       Levers v = levers(ub0_[prev], ti, k);
-      stiff -= v.end.dot(l);  // the arc centre's lever only (see rolling_stiffness above)
+      stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
         const Rolling c = rolling(m.roll_u0[prev], roll_[prev].radius, m.t[rows_[prev].a], ti);
         v.mid -= c.mid;
         v.end -= c.end;
+        own_roll += cross(c.dmid_b, l);
+        couple_prev = cross(c.dmid_a, l);
       }
       m.mid_b[prev] = v.mid;
       m.end_b[prev] = v.end;
@@ -253,6 +270,8 @@ void World::step_midpoint(double h) {
         const Rolling c = rolling(m.roll_u0[next], roll_[next].radius, ti, m.t[rows_[next].b]);
         v.mid += c.mid;
         v.end += c.end;
+        own_roll += cross(c.dmid_a, l);
+        couple_next = cross(c.dmid_b, l);
       }
       m.mid_a[next] = v.mid;
       m.end_a[next] = v.end;
@@ -274,9 +293,15 @@ void World::step_midpoint(double h) {
     const double rho = ti * damp - 0.5 * h * state_[i].w - c * ang;
     // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
     // instead of a singular one (the answer is the same; the iteration's path is not).
-    const double inv_jac = 1 / std::max(damp + c * (stiff * k + 2 * cf * friction_rows), 0.05);
+    const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
+    const double inv_jac = 1 / std::max(jac, 0.05);
     m.rho[i] = rho;
     m.inv_jac[i] = inv_jac;
+    if (has_rolling_) {  // the exact Newton's terms (rolling_newton above)
+      m.jac[i] = jac;
+      if (prev >= 0) m.couple_ba[prev] = -c * (couple_prev + 2 * cf);
+      if (next >= 0) m.couple_ab[next] = -c * (couple_next + 2 * cf);
+    }
     m.stiff_coef[i] = 2 * c * k * inv_jac;
     m.lift[i] = 2 * k * rho * inv_jac;
     // What rounding alone leaves of rho: a few ulps of its largest terms (a long chain's tension puts moments of
@@ -365,6 +390,46 @@ void World::step_midpoint(double h) {
         u_prev.setZero();
       }
     };
+    // With rolling rows, row k's 3x3 blocks in the unknowns (dL_k, dt_b(k)) (rolling_newton above): its gap's and its
+    // body b's angular residual's derivatives; a driven body b's turn is fixed (an identity row). A chain's first
+    // body, when it moves, is eliminated: dt_a = (-rho_a + c_a perp(mid_a) . dL_k - couple_ab dt_b) / jac_a.
+    const auto row3 = [&](int k, Mat3& d, Mat3& lower, Mat3& u_prev, Vec3& rhs) HOT_INLINE {
+      const Vec2 gap = residual_row(k);
+      const Row& r = rows_[static_cast<size_t>(k)];
+      const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
+      const double ha = ak ? 0.0 : h * m.alpha[r.a], hb = bk ? 0.0 : h * m.alpha[r.b];
+      const double ta = m.t[r.a], tb = m.t[r.b];
+      const Vec2 slope_a = (2 / (1 + ta * ta)) * perp(m.end_a[k]);    // d gap / d t_a
+      const Vec2 slope_b = (-2 / (1 + tb * tb)) * perp(m.end_b[k]);   // d gap / d t_b
+      d.setZero();
+      d(0, 0) = d(1, 1) = ha + hb;
+      rhs << -gap, 0.0;
+      if (bk) {
+        d(2, 2) = 1;
+      } else {
+        d.block<2, 1>(0, 2) = slope_b;
+        d.block<1, 2>(2, 0) = m.spin_gain[r.b] * perp(m.mid_b[k]).transpose();
+        d(2, 2) = m.jac[r.b];
+        rhs(2) = -m.rho[r.b];
+      }
+      lower.setZero();
+      u_prev.setZero();
+      if (r.link_prev) {  // body a is the previous row's body b: its turn is the previous block's third unknown
+        lower(0, 0) = lower(1, 1) = -ha;
+        lower.block<2, 1>(0, 2) = slope_a;
+        if (!bk) lower(2, 2) = m.couple_ba[k];
+        u_prev(0, 0) = u_prev(1, 1) = -ha;
+        u_prev.block<1, 2>(2, 0) = -m.spin_gain[r.a] * perp(m.mid_a[k]).transpose();
+        if (!bk) u_prev(2, 2) = m.couple_ab[k];
+      } else if (!ak) {
+        const double inv = m.inv_jac[r.a];
+        const Vec3 col(slope_a.x(), slope_a.y(), bk ? 0.0 : m.couple_ba[k]);
+        Vec3 w;
+        w << (m.spin_gain[r.a] * inv) * perp(m.mid_a[k]), bk ? 0.0 : -m.couple_ab[k] * inv;
+        d.noalias() += col * w.transpose();
+        rhs += (m.rho[r.a] * inv) * col;
+      }
+    };
     // When this iterate is likely the answer (the last one was within a few orders of the tolerance, or the last
     // step's first guess was right), the residual alone is measured first, and the Newton blocks only if it falls
     // short: a pass with half the arithmetic instead of a full one. Either way the same values are computed.
@@ -376,7 +441,9 @@ void World::step_midpoint(double h) {
     }
     if (!checked) {
       for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho);
-      if (n > 0) st.regularised_pivots += newton_.factor_forward(static_cast<int>(n), row, m.dlam);
+      if (n > 0)
+        st.regularised_pivots += has_rolling_ ? m.newton3.factor_forward(static_cast<int>(n), row3, m.dx)
+                                              : newton_.factor_forward(static_cast<int>(n), row, m.dlam);
     }
     const double worst_gap = std::sqrt(worst_gap2);
     st.residual = std::sqrt(largest_gap2);
@@ -390,13 +457,28 @@ void World::step_midpoint(double h) {
     if (iteration >= options_.max_iterations || !std::isfinite(worst_gap) || !std::isfinite(worst_rho)) break;
     expect_converged = worst_gap < kNearlyThere * tol && worst_rho < kNearlyThere * tol;
     // Back-substitution: each row's correction, and each body's as soon as its rows' are known.
-    if (n > 0)
+    if (n > 0 && has_rolling_) {
+      m.newton3.backward(m.dx, [&](int k) HOT_INLINE {
+        const Row& r = rows_[static_cast<size_t>(k)];
+        const Vec3& x = m.dx[k];
+        m.lam[k] += x.head<2>();
+        const auto turn = [&](int b, double dt) {
+          m.t[b] = std::clamp(m.t[b] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+        };
+        const bool bk = bodies_[r.b].kinematic;
+        if (!r.link_prev && !bodies_[r.a].kinematic)  // (before t_b moves: the same iterate as the blocks)
+          turn(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
+                     (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a]);
+        if (!bk) turn(r.b, x(2));
+      });
+    } else if (n > 0) {
       newton_.backward(m.dlam, [&](int k) HOT_INLINE {
         const Row& r = rows_[static_cast<size_t>(k)];
         m.lam[k] += m.dlam[k];
         if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1);
         if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k);
       });
+    }
     for (const int b : loose_bodies_) correct_body(b, -1, -1);
     ++st.iterations;
   }

@@ -540,6 +540,11 @@ class World {
     std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
     std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
     bool guess_was_right = false;  // the last step's first guess solved it: try this one's residual alone first
+    // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
+    // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
+    std::vector<double> jac, couple_ab, couple_ba;
+    BlockTridiag3 newton3;
+    std::vector<Vec3> dx;
   };
   MidpointWork mid_;
 
