@@ -61,10 +61,7 @@ struct Levers {
 // And the slopes of kappa r ubar in t_a and t_b, for the Newton matrix (the compiler drops them where unused):
 // d u+ / d t_a = perp(u+) / (1 + t_a^2), d kappa / d t_a = -(kappa^2 / 2) (t_a (1 + t_b^2) / s - t_b) with s the
 // square root above, and the same with a and b exchanged.
-struct Rolling {
-  Vec2 end, mid;  // r u+ and kappa r ubar
-  Vec2 dmid_a, dmid_b;  // d(kappa r ubar) / d t_a and / d t_b
-};
+using Rolling = RollingTerms;  // world.hpp
 [[gnu::always_inline]] inline Rolling rolling(const Vec2& u0, double r, double ta, double tb) {
   const double s = std::sqrt((1 + ta * ta) * (1 + tb * tb)), c = 1 - ta * tb;
   const double inv = 1 / s;
@@ -229,6 +226,7 @@ void World::step_midpoint(double h) {
   m.stiff_coef.resize(nb);
   m.lift.resize(nb);
   if (has_rolling_) {
+    m.roll.resize(n);
     m.jac.resize(nb);
     m.couple_ab.resize(n);
     m.couple_ba.resize(n);
@@ -246,7 +244,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ub0_[prev], ti, k);
       stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
-        const Rolling c = rolling(m.roll_u0[prev], roll_[prev].radius, m.t[rows_[prev].a], ti);
+        const Rolling& c = m.roll[prev];  // rolling_once (below): computed for body a in this pass
         v.mid -= c.mid;
         v.end -= c.end;
         own_roll += cross(c.dmid_b, l);
@@ -267,7 +265,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ua0_[next], ti, k);
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
-        const Rolling c = rolling(m.roll_u0[next], roll_[next].radius, ti, m.t[rows_[next].b]);
+        const Rolling& c = m.roll[next] = rolling(m.roll_u0[next], roll_[next].radius, ti, m.t[rows_[next].b]);
         v.mid += c.mid;
         v.end += c.end;
         own_roll += cross(c.dmid_a, l);
@@ -338,21 +336,20 @@ void World::step_midpoint(double h) {
     double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;
     if (expect_converged) for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho);
     // Row k's bodies finished (body a at a chain's start, body b always, with its next row's side when it has one)
-    // and its gap measured.
+    // and its gap measured. rolling_once: a rolling row's contact terms are computed once per pass, on its body a's
+    // side (in finish_body, or here when a is driven), and read on body b's: every pass runs k = 0, 1, ... with the
+    // turns fixed, and body a's side of row k comes first (in row k - 1's pass when it is shared, else here).
     const auto residual_row = [&](int k) HOT_INLINE {
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       if (ak) {  // (a driven side's levers enter no angular equation: only its end point counts)
-        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a],
-                                                                   m.t[r.b]).end)
-                                          : ua0_[k];
+        if (r.rolls) m.roll[k] = rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b]);
+        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k];
       } else if (!r.link_prev) {
         finish_body(r.a, -1, k, worst_rho);
       }
       if (bk) {
-        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a],
-                                                                   m.t[r.b]).end)
-                                          : ub0_[k];
+        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k];
       } else {
         finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho);
       }

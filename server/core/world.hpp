@@ -31,6 +31,12 @@
 
 namespace ladder::core {
 
+// A rolling row's contact over a midpoint step at the current iterate (midpoint.cpp, rolling()): r u+, kappa r ubar
+// and the slopes of kappa r ubar in the two bodies' t.
+struct RollingTerms {
+  Vec2 end, mid, dmid_a, dmid_b;
+};
+
 enum class Integrator { Euler, SymplecticEuler, Rattle, RK4, Projection, Reduced, Midpoint };
 enum class SolverKind { Newton, NewtonLineSearch };
 // What keeps the state on the constraint manifold after a step, beyond what the integrator does itself:
@@ -543,6 +549,7 @@ class World {
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
     std::vector<double> jac, couple_ab, couple_ba;
+    std::vector<RollingTerms> roll;  // per rolling row, this pass's contact terms (midpoint.cpp, rolling_once)
     BlockTridiag3 newton3;
     std::vector<Vec3> dx;
   };
