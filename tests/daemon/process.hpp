@@ -21,14 +21,17 @@ namespace ladder::test {
 // A child process with its standard error (and output) in a file; killed when the object dies.
 class Process {
  public:
+  // The log is emptied here, before the fork: emptied by the child, a log left by an earlier run of the same test
+  // could be read in between (a test waiting for "ready" then went on at once, and failed on the empty log).
   Process(const std::vector<std::string>& args, const std::string& log_path) : log_(log_path) {
+    const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     pid_ = fork();
     if (pid_ == 0) {
-      const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      dup2(fd, 1);
+      dup2(fd, 1);  // (the duplicates are not close-on-exec)
       dup2(fd, 2);
       exec(args);
     }
+    if (fd >= 0) close(fd);
   }
   // In a child: runs args[0] with these arguments, or ends the child with 127.
   [[noreturn]] static void exec(const std::vector<std::string>& args) {
