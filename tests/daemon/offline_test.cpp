@@ -143,11 +143,15 @@ TEST_F(Offline, TrajectorySamplesFallOnExactMultiplesOfTenMilliseconds) {
       // The first step that reaches k * 10 ms: exactly k * 10 ms when 10 ms is a whole number of steps.
       const double expected = std::ceil(0.01 * k / step - 1e-6) * step;
       EXPECT_EQ(t, expected) << "dt " << dt << " sample " << k;
-      if (whole) EXPECT_NEAR(t, 0.01 * k, 1e-15 * (1 + t)) << "dt " << dt << " sample " << k;
+      if (whole) {
+        EXPECT_NEAR(t, 0.01 * k, 1e-15 * (1 + t)) << "dt " << dt << " sample " << k;
+      }
       ++k;
     }
     EXPECT_EQ(k, 201) << "dt " << dt;
-    if (whole) EXPECT_EQ(json::parse(slurp(path("sum.json")))["sim_time"].get<double>(), 2.0) << "dt " << dt;
+    if (whole) {
+      EXPECT_EQ(json::parse(slurp(path("sum.json")))["sim_time"].get<double>(), 2.0) << "dt " << dt;
+    }
   }
 }
 
