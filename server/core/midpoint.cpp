@@ -308,13 +308,16 @@ void World::step_midpoint(double h) {
     const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * m.gyration[i];
     worst_rho = std::isfinite(rho_excess) ? std::max(worst_rho, rho_excess) : kInfinity;
   };
+  // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
+  const auto turn_by = [&](int i, double dt) HOT_INLINE {
+    m.t[i] = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+  };
   // A body's correction once its rows' are known: dt = (-rho + h / (4 I) sum sigma mid x dL) / jac.
   const auto correct_body = [&](int i, int prev, int next) HOT_INLINE {
     double dang = 0;
     if (prev >= 0) dang -= cross(m.mid_b[prev], m.dlam[prev]);
     if (next >= 0) dang += cross(m.mid_a[next], m.dlam[next]);
-    const double dt = (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i];
-    m.t[i] = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+    turn_by(i, (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i]);
   };
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
   double last_rho = kInfinity, final_gap = 0;
@@ -459,14 +462,11 @@ void World::step_midpoint(double h) {
         const Row& r = rows_[static_cast<size_t>(k)];
         const Vec3& x = m.dx[k];
         m.lam[k] += x.head<2>();
-        const auto turn = [&](int b, double dt) {
-          m.t[b] = std::clamp(m.t[b] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
-        };
         const bool bk = bodies_[r.b].kinematic;
-        if (!r.link_prev && !bodies_[r.a].kinematic)  // (before t_b moves: the same iterate as the blocks)
-          turn(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
-                     (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a]);
-        if (!bk) turn(r.b, x(2));
+        if (!r.link_prev && !bodies_[r.a].kinematic)
+          turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
+                        (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a]);
+        if (!bk) turn_by(r.b, x(2));
       });
     } else if (n > 0) {
       newton_.backward(m.dlam, [&](int k) HOT_INLINE {
