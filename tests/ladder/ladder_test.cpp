@@ -203,6 +203,10 @@ TEST(DoubleRipple, TheRipplesMeetAndCancel) { expect_ripples_cancel("double-ripp
 // tall-double-ripple.toml: 64 rolling-hinge slats; the second ripple catches the first about twenty hinges down,
 // and every hinge from there to the bottom one stays as it was for the whole 30 s (measured: hinges 21 to 63).
 TEST(DoubleRipple, TheTallLaddersRipplesMeetAndCancelAndTheBottomNeverFlips) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "2 million block-steps: a physics check for the plain build (the tall single ripple runs under "
+                  "the sanitizers)";
+#endif
   const std::set<int> never = expect_ripples_cancel("tall-double-ripple.toml", 30.0);
   ASSERT_FALSE(never.empty());
   EXPECT_EQ(*never.rbegin(), 63) << "the hinges below the meeting point, down to the bottom one, never flip";
