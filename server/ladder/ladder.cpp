@@ -144,15 +144,71 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   std::vector<Vec2> centre(static_cast<size_t>(n)), hinge(static_cast<size_t>(n), Vec2::Zero());
   std::vector<double> angle(static_cast<size_t>(n), 0.0);
   angle[0] = hanging && spec.top == Top::Pinned ? -lean : 0.0;
-  centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, 0.5 * L, 0.5 * W));  // top-left corner (or arc) at the origin
-  for (int k = 1; k < n; ++k) {
-    const Vec2 above = centre[k - 1] + Rot::of(angle[k - 1]) * corner_local(k - 1, corner_of(k), 0.5 * L, 0.5 * W);
-    angle[k] = hanging ? (k % 2 == 1 ? lean : -lean) : 0.0;
-    // A rolling pair's contact is r below the upper arc centre along the pair's mean angle (straight down when
-    // the pair is straight), and the lower arc centre r further on.
-    const Vec2 down = Rot::of(0.5 * (angle[k - 1] + angle[k])) * Vec2(0, -r);
-    hinge[k] = above + down;
-    centre[k] = above + 2 * down - Rot::of(angle[k]) * corner_local(k, corner_of(k), 0.5 * L, 0.5 * W);
+  for (int k = 1; k < n; ++k) angle[k] = hanging ? (k % 2 == 1 ? lean : -lean) : 0.0;
+  const auto lay_out = [&] {
+    centre[0] = -(Rot::of(angle[0]) * corner_local(0, 3, 0.5 * L, 0.5 * W));  // top-left corner (or arc) at the origin
+    for (int k = 1; k < n; ++k) {
+      const Vec2 above = centre[k - 1] + Rot::of(angle[k - 1]) * corner_local(k - 1, corner_of(k), 0.5 * L, 0.5 * W);
+      // A rolling pair's contact is r below the upper arc centre along the pair's mean angle (straight down when
+      // the pair is straight), and the lower arc centre r further on.
+      const Vec2 down = Rot::of(0.5 * (angle[k - 1] + angle[k])) * Vec2(0, -r);
+      hinge[k] = above + down;
+      centre[k] = above + 2 * down - Rot::of(angle[k]) * corner_local(k, corner_of(k), 0.5 * L, 0.5 * W);
+    }
+  };
+  lay_out();
+  // With rolling hinges and the top block held upright, the first pair's mean angle is not zero, its contact is off
+  // the vertical through the blocks below, and the angles above are not at rest. Newton's method on each block's
+  // moment about its upper contact (its weight at its centre, the weight below at its lower contact) finds the
+  // angles that are, with a finite-difference Jacobian (tridiagonal: block k's moment depends on the angles of
+  // blocks k - 1 to k + 1 only, so three layouts with every third angle moved give all of it). docs/model.md
+  // section 9.
+  if (hanging && r > 0 && spec.top == Top::Held && n > 1) {
+    std::vector<double> below(static_cast<size_t>(n) + 1, 0.0);  // mass of blocks k to n - 1
+    for (int k = n - 1; k >= 1; --k) below[k] = below[k + 1] + block_mass(k);
+    const auto moments = [&](std::vector<double>& out) {
+      lay_out();
+      out.assign(static_cast<size_t>(n), 0.0);
+      for (int k = 1; k < n; ++k) {
+        out[k] = block_mass(k) * (centre[k].x() - hinge[k].x());
+        if (k + 1 < n) out[k] += below[k + 1] * (hinge[k + 1].x() - hinge[k].x());
+      }
+    };
+    const auto un = static_cast<size_t>(n);
+    const std::vector<double> laid = angle;  // kept if the solve fails (a degenerate ladder): then a hair from rest
+    std::vector<double> res, moved, lo(un), di(un), up(un), step(un);
+    constexpr double kDelta = 1e-7;
+    for (int iteration = 0; iteration < 10; ++iteration) {
+      moments(res);
+      for (int colour = 0; colour < 3; ++colour) {
+        for (int j = 1 + colour; j < n; j += 3) angle[j] += kDelta;
+        moments(moved);
+        for (int j = 1 + colour; j < n; j += 3) {
+          angle[j] -= kDelta;
+          for (int k = std::max(1, j - 1); k <= std::min(n - 1, j + 1); ++k)
+            (k == j ? di[k] : k == j - 1 ? up[k] : lo[k]) = (moved[k] - res[k]) / kDelta;
+        }
+      }
+      // Thomas's algorithm on lo[k] x[k-1] + di[k] x[k] + up[k] x[k+1] = -res[k], k = 1..n-1.
+      for (int k = 1; k < n; ++k) {
+        step[k] = -res[k];
+        if (k > 1) {
+          const double f = lo[k] / di[k - 1];
+          di[k] -= f * up[k - 1];
+          step[k] -= f * step[k - 1];
+        }
+      }
+      double largest = 0;
+      for (int k = n - 1; k >= 1; --k) {
+        if (k + 1 < n) step[k] -= up[k] * step[k + 1];
+        step[k] /= di[k];
+        angle[k] += step[k];
+        largest = std::max(largest, std::abs(step[k]));
+      }
+      if (!(largest > 1e-15)) break;
+    }
+    if (!std::all_of(angle.begin(), angle.end(), [](double a) { return std::isfinite(a); })) angle = laid;
+    lay_out();
   }
   const Rot tilt = Rot::of(spec.tilt);
   for (int i = 0; i < n; ++i) {
