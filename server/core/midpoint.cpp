@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace ladder::core {
 
@@ -58,21 +59,28 @@ struct Levers {
 // bodies' half-angle tangents, the direction at the end u+ = u0 R(atan t_a + atan t_b) and kappa r ubar, the share
 // of the contact offset that each body's midpoint lever carries (ubar = (u0 + u+) / 2): 2 r (u+ - u0) =
 // 2 (t_a + t_b) perp(kappa r ubar) exactly, with kappa = 2 / (1 - t_a t_b + sqrt((1 + t_a^2)(1 + t_b^2))).
-// And the slopes of kappa r ubar in t_a and t_b, for the Newton matrix (the compiler drops them where unused):
+// And the slopes of kappa r ubar in t_a and t_b, for the Newton matrix:
 // d u+ / d t_a = perp(u+) / (1 + t_a^2), d kappa / d t_a = -(kappa^2 / 2) (t_a (1 + t_b^2) / s - t_b) with s the
-// square root above, and the same with a and b exchanged.
+// square root above, and the same with a and b exchanged. ka and kb are 1 / (1 + t_a^2) and 1 / (1 + t_b^2). With
+// kSlopes false the slopes are left out (a pass that measures the residual alone).
 using Rolling = RollingTerms;  // world.hpp
-[[gnu::always_inline]] inline Rolling rolling(const Vec2& u0, double r, double ta, double tb) {
+template <bool kSlopes = true>
+[[gnu::always_inline]] inline Rolling rolling(const Vec2& u0, double r, double ta, double tb, double ka, double kb) {
   const double s = std::sqrt((1 + ta * ta) * (1 + tb * tb)), c = 1 - ta * tb;
-  const double inv = 1 / s;
+  const double q = 1 / (s * (c + s));  // one division for 1 / s and 2 / (c + s)
+  const double inv = q * (c + s), kappa = 2 * q * s;
   const Vec2 turn(c * inv, (ta + tb) * inv);  // R(atan t_a + atan t_b)
   const Vec2 u1(turn.x() * u0.x() - turn.y() * u0.y(), turn.y() * u0.x() + turn.x() * u0.y());
-  const double kappa = 2 / (c + s);
-  const Vec2 sum = u0 + u1, pu1 = perp(u1);
-  const double half_kk = 0.5 * kappa * kappa;
-  const double dka = half_kk * (tb - ta * (1 + tb * tb) * inv), dkb = half_kk * (ta - tb * (1 + ta * ta) * inv);
-  return {r * u1, (0.5 * kappa * r) * sum, (0.5 * r) * (dka * sum + (kappa / (1 + ta * ta)) * pu1),
-          (0.5 * r) * (dkb * sum + (kappa / (1 + tb * tb)) * pu1)};
+  const Vec2 sum = u0 + u1;
+  if constexpr (!kSlopes) {
+    return {r * u1, (0.5 * kappa * r) * sum, Vec2::Zero(), Vec2::Zero()};
+  } else {
+    const Vec2 pu1 = perp(u1);
+    const double half_kk = 0.5 * kappa * kappa;
+    const double dka = half_kk * (tb - ta * (1 + tb * tb) * inv), dkb = half_kk * (ta - tb * (1 + ta * ta) * inv);
+    return {r * u1, (0.5 * kappa * r) * sum, (0.5 * r) * (dka * sum + (kappa * ka) * pu1),
+            (0.5 * r) * (dkb * sum + (kappa * kb) * pu1)};
+  }
 }
 
 // rolling_newton: a rolling row's contact offset kappa r ubar turns with both of its bodies, so each body's angular
@@ -155,7 +163,7 @@ void World::step_midpoint(double h) {
   m.beta.resize(nb);
   m.vbar.resize(nb);
   m.vfree.resize(nb);
-  m.gyration.resize(nb);
+  const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl);
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
     const BodyState& s = state_[b];
@@ -166,19 +174,13 @@ void World::step_midpoint(double h) {
     }
     // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
     // -c_a I_p w (the parts' centres average to the body's).
-    double own = body.inertia;  // the parts' moments about their own centres
-    if (!body.single_part) {
-      own = 0;
-      for (const int p : body_parts_[b]) own += parts_[static_cast<size_t>(p)].inertia;
-    }
-    m.beta[b] = cl * (body.inertia - own) + ca * own;
-    m.spin_gain[b] = h / (4 * body.inertia);
-    m.damp[b] = 1 + h * m.beta[b] / (2 * body.inertia);
-    m.alpha[b] = 1 / (body.mass * (2 + h * cl));
+    m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
+    m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
+    m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
+    m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
     // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
     m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
     m.t[b] = 0.5 * h * s.w;
-    m.gyration[b] = std::sqrt(body.inertia * body.inv_mass);
   }
   // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
   for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
@@ -186,6 +188,8 @@ void World::step_midpoint(double h) {
     const Rot rel = m.kinematic_start[i].q.inverse() * state_[b].q;
     m.t[b] = rel.s / (1 + rel.c);
   }
+  m.kt.resize(nb);  // 1 / (1 + t^2), kept beside every t (turn_by)
+  for (size_t b = 0; b < nb; ++b) m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);
   // The users' forces, as impulses over the step at their start levers (world frame).
   m.force_lever.clear();
   for (const AppliedForce& af : forces_) {
@@ -232,9 +236,12 @@ void World::step_midpoint(double h) {
     m.couple_ba.resize(n);
   }
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
-  // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side.
-  const auto finish_body = [&](int i, int prev, int next, double& worst_rho) HOT_INLINE {
-    const double ti = m.t[i], k = 1 / (1 + ti * ti);
+  // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
+  // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
+  // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them).
+  const auto finish_body = [&](int i, int prev, int next, double& worst_rho, auto newton) HOT_INLINE {
+    constexpr bool kNewton = decltype(newton)::value;
+    const double ti = m.t[i], k = m.kt[i];
     Vec2 lin = Vec2::Zero();
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
     // With rolling rows (rolling_newton above): sum of dmid_i x L over them, and dmid_j x L per row.
@@ -247,8 +254,10 @@ void World::step_midpoint(double h) {
         const Rolling& c = m.roll[prev];  // rolling_once (below): computed for body a in this pass
         v.mid -= c.mid;
         v.end -= c.end;
-        own_roll += cross(c.dmid_b, l);
-        couple_prev = cross(c.dmid_a, l);
+        if constexpr (kNewton) {
+          own_roll += cross(c.dmid_b, l);
+          couple_prev = cross(c.dmid_a, l);
+        }
       }
       m.mid_b[prev] = v.mid;
       m.end_b[prev] = v.end;
@@ -265,11 +274,14 @@ void World::step_midpoint(double h) {
       Levers v = levers(ua0_[next], ti, k);
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
-        const Rolling& c = m.roll[next] = rolling(m.roll_u0[next], roll_[next].radius, ti, m.t[rows_[next].b]);
+        const Rolling& c = m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti,
+                                                                m.t[rows_[next].b], k, m.kt[rows_[next].b]);
         v.mid += c.mid;
         v.end += c.end;
-        own_roll += cross(c.dmid_a, l);
-        couple_next = cross(c.dmid_b, l);
+        if constexpr (kNewton) {
+          own_roll += cross(c.dmid_a, l);
+          couple_next = cross(c.dmid_b, l);
+        }
       }
       m.mid_a[next] = v.mid;
       m.end_a[next] = v.end;
@@ -289,28 +301,32 @@ void World::step_midpoint(double h) {
     const double c = m.spin_gain[i], damp = m.damp[i];
     m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;  // vbar - v
     const double rho = ti * damp - 0.5 * h * state_[i].w - c * ang;
-    // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
-    // instead of a singular one (the answer is the same; the iteration's path is not).
-    const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
-    const double inv_jac = 1 / std::max(jac, 0.05);
     m.rho[i] = rho;
-    m.inv_jac[i] = inv_jac;
-    if (has_rolling_) {  // the exact Newton's terms (rolling_newton above)
-      m.jac[i] = jac;
-      if (prev >= 0) m.couple_ba[prev] = -c * (couple_prev + 2 * cf);
-      if (next >= 0) m.couple_ab[next] = -c * (couple_next + 2 * cf);
+    if constexpr (kNewton) {
+      // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
+      // instead of a singular one (the answer is the same; the iteration's path is not).
+      const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
+      const double inv_jac = 1 / std::max(jac, 0.05);
+      m.inv_jac[i] = inv_jac;
+      if (has_rolling_) {  // the exact Newton's terms (rolling_newton above)
+        m.jac[i] = jac;
+        if (prev >= 0) m.couple_ba[prev] = -c * (couple_prev + 2 * cf);
+        if (next >= 0) m.couple_ab[next] = -c * (couple_next + 2 * cf);
+      }
+      m.stiff_coef[i] = 2 * c * k * inv_jac;
+      m.lift[i] = 2 * k * rho * inv_jac;
     }
-    m.stiff_coef[i] = 2 * c * k * inv_jac;
-    m.lift[i] = 2 * k * rho * inv_jac;
     // What rounding alone leaves of rho: a few ulps of its largest terms (a long chain's tension puts moments of
     // several N m s on each block that cancel to a small net turn).
     const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
-    const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * m.gyration[i];
+    const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * bodies_[i].gyration;
     worst_rho = std::isfinite(rho_excess) ? std::max(worst_rho, rho_excess) : kInfinity;
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
   const auto turn_by = [&](int i, double dt) HOT_INLINE {
-    m.t[i] = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+    const double t = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+    m.t[i] = t;
+    m.kt[i] = 1 / (1 + t * t);
   };
   // A body's correction once its rows' are known: dt = (-rho + h / (4 I) sum sigma mid x dL) / jac.
   const auto correct_body = [&](int i, int prev, int next) HOT_INLINE {
@@ -331,30 +347,32 @@ void World::step_midpoint(double h) {
         const int b = parts_[static_cast<size_t>(af.part)].body;
         if (bodies_[b].kinematic) continue;
         const Vec2 j = h * af.over_step(t0, h);
-        const Levers v = levers(m.force_lever[f], m.t[b], 1 / (1 + m.t[b] * m.t[b]));
+        const Levers v = levers(m.force_lever[f], m.t[b], m.kt[b]);
         m.force_ang[b] += cross(v.mid, j);
         m.force_stiff[b] += v.end.dot(j);
       }
     }
     double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;
-    if (expect_converged) for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho);
+    if (expect_converged) for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho, std::false_type{});
     // Row k's bodies finished (body a at a chain's start, body b always, with its next row's side when it has one)
     // and its gap measured. rolling_once: a rolling row's contact terms are computed once per pass, on its body a's
     // side (in finish_body, or here when a is driven), and read on body b's: every pass runs k = 0, 1, ... with the
     // turns fixed, and body a's side of row k comes first (in row k - 1's pass when it is shared, else here).
-    const auto residual_row = [&](int k) HOT_INLINE {
+    const auto residual_row = [&](int k, auto newton) HOT_INLINE {
+      constexpr bool kNewton = decltype(newton)::value;
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       if (ak) {  // (a driven side's levers enter no angular equation: only its end point counts)
-        if (r.rolls) m.roll[k] = rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b]);
+        if (r.rolls)
+          m.roll[k] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
         m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k];
       } else if (!r.link_prev) {
-        finish_body(r.a, -1, k, worst_rho);
+        finish_body(r.a, -1, k, worst_rho, newton);
       }
       if (bk) {
         m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k];
       } else {
-        finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho);
+        finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho, newton);
       }
       const BodyState& a = state_[r.a];
       const BodyState& b = state_[r.b];
@@ -371,7 +389,7 @@ void World::step_midpoint(double h) {
     };
     // The same, then the row's Newton blocks, factored and forward-substituted (BlockTridiag::factor_forward).
     const auto row = [&](int k, Mat2& d, Mat2& lower, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
-      const Vec2 gap = residual_row(k);
+      const Vec2 gap = residual_row(k, std::true_type{});
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       // A dL = -gap + sum_i sigma lift_i perp(end_i), with A_kj = sum over the bodies i of rows k and j of
@@ -393,14 +411,13 @@ void World::step_midpoint(double h) {
     // With rolling rows, row k's 3x3 blocks in the unknowns (dL_k, dt_b(k)) (rolling_newton above): its gap's and its
     // body b's angular residual's derivatives; a driven body b's turn is fixed (an identity row). A chain's first
     // body, when it moves, is eliminated: dt_a = (-rho_a + c_a perp(mid_a) . dL_k - couple_ab dt_b) / jac_a.
-    const auto row3 = [&](int k, Mat3& d, Mat3& lower, Mat3& u_prev, Vec3& rhs) HOT_INLINE {
-      const Vec2 gap = residual_row(k);
+    const auto row3 = [&](int k, Mat3& d, Coupling3& cp, Vec3& rhs) HOT_INLINE {
+      const Vec2 gap = residual_row(k, std::true_type{});
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       const double ha = ak ? 0.0 : h * m.alpha[r.a], hb = bk ? 0.0 : h * m.alpha[r.b];
-      const double ta = m.t[r.a], tb = m.t[r.b];
-      const Vec2 slope_a = (2 / (1 + ta * ta)) * perp(m.end_a[k]);    // d gap / d t_a
-      const Vec2 slope_b = (-2 / (1 + tb * tb)) * perp(m.end_b[k]);   // d gap / d t_b
+      const Vec2 slope_a = (2 * m.kt[r.a]) * perp(m.end_a[k]);    // d gap / d t_a
+      const Vec2 slope_b = (-2 * m.kt[r.b]) * perp(m.end_b[k]);   // d gap / d t_b
       d.setZero();
       d(0, 0) = d(1, 1) = ha + hb;
       rhs << -gap, 0.0;
@@ -412,16 +429,16 @@ void World::step_midpoint(double h) {
         d(2, 2) = m.jac[r.b];
         rhs(2) = -m.rho[r.b];
       }
-      lower.setZero();
-      u_prev.setZero();
       if (r.link_prev) {  // body a is the previous row's body b: its turn is the previous block's third unknown
-        lower(0, 0) = lower(1, 1) = -ha;
-        lower.block<2, 1>(0, 2) = slope_a;
-        if (!bk) lower(2, 2) = m.couple_ba[k];
-        u_prev(0, 0) = u_prev(1, 1) = -ha;
-        u_prev.block<1, 2>(2, 0) = -m.spin_gain[r.a] * perp(m.mid_a[k]).transpose();
-        if (!bk) u_prev(2, 2) = m.couple_ab[k];
-      } else if (!ak) {
+        cp.l = cp.u = -ha;
+        cp.s = slope_a;
+        cp.g = bk ? 0.0 : m.couple_ba[k];
+        cp.p = -m.spin_gain[r.a] * perp(m.mid_a[k]);
+        cp.e = bk ? 0.0 : m.couple_ab[k];
+        return;
+      }
+      cp = Coupling3{};
+      if (!ak) {
         const double inv = m.inv_jac[r.a];
         const Vec3 col(slope_a.x(), slope_a.y(), bk ? 0.0 : m.couple_ba[k]);
         Vec3 w;
@@ -435,12 +452,12 @@ void World::step_midpoint(double h) {
     // short: a pass with half the arithmetic instead of a full one. Either way the same values are computed.
     bool checked = false;
     if (expect_converged) {
-      for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k);
+      for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, std::false_type{});
       checked = !(std::sqrt(worst_gap2) > tol) && !(worst_rho > kRhoShare * tol);
       if (!checked) worst_rho = worst_gap2 = largest_gap2 = 0;
     }
     if (!checked) {
-      for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho);
+      for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho, std::true_type{});
       if (n > 0)
         st.regularised_pivots += has_rolling_ ? m.newton3.factor_forward(static_cast<int>(n), row3, m.dx)
                                               : newton_.factor_forward(static_cast<int>(n), row, m.dlam);
@@ -502,7 +519,7 @@ void World::step_midpoint(double h) {
     const AppliedForce& af = forces_[i];
     const int b = parts_[static_cast<size_t>(af.part)].body;
     if (bodies_[b].kinematic) continue;
-    const Levers v = levers(m.force_lever[i], m.t[b], 1 / (1 + m.t[b] * m.t[b]));
+    const Levers v = levers(m.force_lever[i], m.t[b], m.kt[b]);
     work += af.over_step(t0, h).dot(h * (state_[b].v + m.vbar[b]) + (v.end - m.force_lever[i]));
   }
   for (size_t i = 0; i < kinematic_rows_.size(); ++i) {
@@ -512,7 +529,7 @@ void World::step_midpoint(double h) {
     const BodyState& s = state_[ak ? r.a : r.b];
     Vec2 moved = s.x + s.q * (ak ? r.ra : r.rb) - m.kinematic_anchor[i];
     if (r.rolls) {  // and the driven side's share of the contact's roll, 2 t perp(kappa r ubar) (a) or minus it (b)
-      const Rolling c = rolling(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b]);
+      const Rolling c = rolling<false>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
       moved += (ak ? 2 * m.t[r.a] : -2 * m.t[r.b]) * perp(c.mid);
     }
     work += (ak ? -m.lam[k] : m.lam[k]).dot(moved) / h;  // the impulse over h is the mean force

@@ -64,6 +64,8 @@ int World::add_part(const PartDef& def) {
   body.kinematic = def.kinematic;
   body.inv_mass = def.kinematic ? 0 : 1 / mass;
   body.inv_inertia = def.kinematic ? 0 : 1 / part.inertia;
+  body.own_inertia = part.inertia;
+  body.gyration = std::sqrt(body.inertia * body.inv_mass);
   body.anchor_part = index;
   if (body.kinematic) kinematic_bodies_.push_back(part.body);
   bodies_.push_back(body);
@@ -256,6 +258,9 @@ void World::set_body_from_parts(int b, const std::vector<int>& parts, const std:
   }
   body.inv_mass = body.kinematic ? 0 : 1 / body.mass;
   body.inv_inertia = body.kinematic ? 0 : 1 / body.inertia;
+  body.gyration = std::sqrt(body.inertia * body.inv_mass);
+  body.own_inertia = 0;
+  for (int i : parts) body.own_inertia += parts_[i].inertia;
   body.single_part = parts.size() == 1;
   for (int i : parts) {
     Part& p = parts_[i];

@@ -308,6 +308,8 @@ class World {
   };
   struct Body {
     double mass = 0, inertia = 0, inv_mass = 0, inv_inertia = 0;
+    double own_inertia = 0;  // the sum of its parts' moments about their own centres (inertia, for one part)
+    double gyration = 0;     // sqrt(inertia / mass), 0 when kinematic
     bool kinematic = false;
     bool single_part = true;  // one part: its frame is the body frame (the common case, no loop over parts)
     int anchor_part = -1;  // the part whose frame is the body frame; a driven part if the body is kinematic
@@ -539,7 +541,8 @@ class World {
   // and the mean velocity's change vbar - v, with the sums and Newton terms of the current iterate; per row the impulse, the levers at
   // the midpoint and the end.
   struct MidpointWork {
-    std::vector<double> t, rho, inv_jac, alpha, beta, spin_gain, damp, gyration, stiff_coef, lift, force_ang, force_stiff;
+    std::vector<double> t, rho, inv_jac, alpha, beta, spin_gain, damp, stiff_coef, lift, force_ang, force_stiff;
+    std::vector<double> kt;  // per body 1 / (1 + t^2), kept with t
     std::vector<Vec2> vbar, vfree, lam, dlam, mid_a, mid_b, end_a, end_b;
     std::vector<BodyState> kinematic_start;
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame

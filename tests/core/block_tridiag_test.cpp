@@ -158,39 +158,45 @@ TEST(BlockTridiag, SymmetricFusedPassSolvesTheSameSystem) {
 }
 
 // The 3x3 solver (the midpoint step's Newton system with rolling hinges) against a dense LU of the same system:
-// random non-symmetric blocks with a dominant diagonal, every fifth coupling zero, columns of mixed scale (impulses
-// and turns) as the step's are. Same bound as above.
+// random non-symmetric diagonal blocks with a dominant diagonal, random couplings of the step's pattern
+// (Coupling3), every fifth pair of rows uncoupled, columns of mixed scale (impulses and turns) as the step's are.
+// Same bound as above.
 TEST(BlockTridiag3, MatchesDenseLU) {
-  using ladder::core::BlockTridiag3, ladder::core::Mat3, ladder::core::Vec3;
+  using ladder::core::BlockTridiag3, ladder::core::Coupling3, ladder::core::Mat3, ladder::core::Vec3;
   for (const int n : {1, 2, 7, 100}) {
     std::mt19937 rng(static_cast<unsigned>(n));
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     const Eigen::Vector3d scale(1e-2, 1e-2, 1.0);
-    std::vector<Mat3> d(n), l(n), up(n);
+    std::vector<Mat3> d(n);
+    std::vector<Coupling3> c(n);  // c[k]: L_k and U_{k-1}
     std::vector<Vec3> b(n);
     for (int k = 0; k < n; ++k) {
-      for (Mat3* m : {&d[k], &l[k], &up[k]})
-        for (int i = 0; i < 9; ++i) (*m)(i / 3, i % 3) = u(rng);
+      for (int i = 0; i < 9; ++i) d[k](i / 3, i % 3) = u(rng);
       d[k] += 6.0 * Mat3::Identity();
-      if (k % 5 == 0) l[k].setZero();
-      if ((k + 1) % 5 == 0) up[k].setZero();
+      if (k % 5 != 0) {
+        c[k].l = u(rng), c[k].g = u(rng), c[k].u = u(rng), c[k].e = u(rng);
+        c[k].s = {u(rng), u(rng)};
+        c[k].p = {u(rng), u(rng)};
+      }
       b[k] = Vec3(u(rng), u(rng), u(rng));
     }
     Eigen::MatrixXd a = Eigen::MatrixXd::Zero(3 * n, 3 * n);
     Eigen::VectorXd bd(3 * n);
     for (int k = 0; k < n; ++k) {
       a.block<3, 3>(3 * k, 3 * k) = d[k] * scale.asDiagonal();
-      if (k > 0) a.block<3, 3>(3 * k, 3 * (k - 1)) = l[k] * scale.asDiagonal();
-      if (k + 1 < n) a.block<3, 3>(3 * k, 3 * (k + 1)) = up[k] * scale.asDiagonal();
+      if (k > 0) a.block<3, 3>(3 * k, 3 * (k - 1)) = c[k].lower() * scale.asDiagonal();
+      if (k + 1 < n) a.block<3, 3>(3 * k, 3 * (k + 1)) = c[k + 1].upper() * scale.asDiagonal();
       bd.segment<3>(3 * k) = b[k];
     }
     const Eigen::VectorXd ref = a.partialPivLu().solve(bd);
     BlockTridiag3 sys;
     std::vector<Vec3> x;
-    const int regularised = sys.factor_forward(n, [&](int k, Mat3& dk, Mat3& lk, Mat3& u_prev, Vec3& bk) {
+    // The unknowns' scales folded into the blocks: a coupling's columns 0 and 1 by scale(0), column 2 by scale(2).
+    const int regularised = sys.factor_forward(n, [&](int k, Mat3& dk, Coupling3& ck, Vec3& bk) {
       dk = d[k] * scale.asDiagonal();
-      lk = l[k] * scale.asDiagonal();
-      if (k > 0) u_prev = up[k - 1] * scale.asDiagonal();
+      ck = c[k];
+      ck.l *= scale(0), ck.s *= scale(2), ck.g *= scale(2);
+      ck.u *= scale(0), ck.p *= scale(0), ck.e *= scale(2);
       bk = b[k];
     }, x);
     EXPECT_EQ(regularised, 0);
@@ -208,10 +214,9 @@ TEST(BlockTridiag3, SingularPivotIsCountedAndFinite) {
   using ladder::core::BlockTridiag3, ladder::core::Mat3, ladder::core::Vec3;
   BlockTridiag3 sys;
   std::vector<Vec3> x;
-  const int regularised = sys.factor_forward(1, [](int, Mat3& d, Mat3& l, Mat3& u, Vec3& b) {
+  const int regularised = sys.factor_forward(1, [](int, Mat3& d, ladder::core::Coupling3& c, Vec3& b) {
     d << 1, 0, 0, 0, 1, 0, 0, 0, 0;
-    l.setZero();
-    u.setZero();
+    c = {};
     b = Vec3(1, 2, 3);
   }, x);
   EXPECT_EQ(regularised, 1);
