@@ -572,6 +572,14 @@ void check_hinge(const Reader& r, const model::LadderSpec& l) {
     fail_at(r.find("ladder.end_radius") ? "ladder.end_radius" : "ladder.thickness",
             "ladder.end_radius must be at most half of ladder.thickness (got " + format_number(l.end_radius) +
                 " m with a thickness of " + format_number(l.thickness) + " m)");
+  // A pair's two arc centres are 2 end_radius apart and their direction is the contact's: at a radius below a
+  // millionth of the thickness that direction is lost in the rounding of the blocks' positions (at 1e-300 the two
+  // centres are one point, and the engine could not place the hinge at all).
+  if (l.end_radius > 0 && l.end_radius < 1e-6 * l.thickness)
+    fail_at("ladder.end_radius", "ladder.end_radius must be 0 (the corner hinge) or at least 1e-6 of ladder.thickness "
+                                 "(got " + format_number(l.end_radius) + " m with a thickness of " +
+                                 format_number(l.thickness) + " m): below that the contact's direction is lost in "
+                                 "the rounding of the blocks' positions");
   if (l.end_radius > 0 && l.hinge != model::HingeKind::Rolling)
     fail_at("ladder.end_radius", "ladder.end_radius needs ladder.hinge = \"rolling\" (a corner hinge turns about "
                                  "the corner itself)");

@@ -624,6 +624,11 @@ TEST(Values, RollingHingeKeys) {
   expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 0.006\n", "<string>:4:14: ",
                {"ladder.end_radius must be at most half of ladder.thickness (got 0.006 m with a thickness of 0.01 m)"});
   expect_error("[ladder]\nend_radius = 0.001\n", "<string>:2:14: ", {"ladder.end_radius needs ladder.hinge = \"rolling\""});
+  // A radius too small to place the hinge (the engine found the two arc centres at one point at 1e-300).
+  expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 1e-300\n", "<string>:4:14: ",
+               {"ladder.end_radius must be 0 (the corner hinge) or at least 1e-6 of ladder.thickness (got 1e-300 m"});
+  EXPECT_EQ(parse_scene("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 1e-8\n", "<string>")
+                .ladder.end_radius, 1e-8);  // the smallest radius allowed there
   expect_error("[ladder]\nhinge = \"rolling\"\nhinge_inset = 0.2\n", "<string>:3:15: ",
                {"ladder.hinge_inset is for corner hinges"});
   expect_error("[ladder]\nhinge = \"pivot\"\n", "<string>:2:9: ", {"ladder.hinge must be", "corner", "rolling"});
