@@ -248,8 +248,7 @@ double World::difference(const std::vector<BodyState>& other) const {
   for (size_t b = 0; b < bodies_.size(); ++b) {
     const Body& body = bodies_[b];
     if (body.kinematic) continue;
-    const double d = (state_[b].x - other[b].x).norm() +
-                     std::sqrt(body.inertia * body.inv_mass) * std::abs(state_[b].th - other[b].th);
+    const double d = (state_[b].x - other[b].x).norm() + body.gyration * std::abs(state_[b].th - other[b].th);
     worst = std::max(worst, std::isnan(d) ? std::numeric_limits<double>::infinity() : d);
   }
   return worst;
