@@ -119,6 +119,10 @@ constexpr double kEpsilon = 0x1p-52;
 // 1 ms); near it the corrections are far below the limits, so the convergence is Newton's.
 constexpr double kMaxTurnChange = 0.1;
 constexpr double kMaxT = 1;
+constexpr double kJacFloor = 0.05;  // the floor of a body's turn stiffness (finish_body)
+// A Newton correction so small that what it leaves is known without measuring it (newton_remainder below): the step
+// ends there when the remainder's bound is below this share of the tolerances.
+constexpr double kRemainderShare = 1e-2;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 void World::step_midpoint(double h) {
@@ -136,8 +140,10 @@ void World::step_midpoint(double h) {
     solve_positions(ua0_, ub0_, 0.0);
   }
   // The driven bodies move to their poses at the end; what they were at the start serves the work and the friction.
-  // A rolling row's contact direction at the start (before the drives move their bodies).
-  if (has_rolling_) {
+  // A rolling row's contact direction at the start (before the drives move their bodies), unless the last step's
+  // end measured it (a predicted end, below) and nothing has moved or changed since.
+  if (has_rolling_ && !(m.roll_u0_version == state_version_ && m.roll_u0_structure == structure_ &&
+                        m.roll_u0.size() == n)) {
     m.roll_u0.resize(n);
     for (size_t k = 0; k < n; ++k)
       if (rows_[k].rolls) m.roll_u0[k] = roll_offset(k) / roll_[k].radius;
@@ -164,6 +170,7 @@ void World::step_midpoint(double h) {
   m.vbar.resize(nb);
   m.vfree.resize(nb);
   const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl);
+  double spin_gyration = 0;  // the largest h / (4 I) times the radius of gyration (newton_remainder)
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
     const BodyState& s = state_[b];
@@ -176,6 +183,7 @@ void World::step_midpoint(double h) {
     // -c_a I_p w (the parts' centres average to the body's).
     m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
     m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
+    spin_gyration = std::max(spin_gyration, m.spin_gain[b] * body.gyration);
     m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
     m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
     // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
@@ -213,10 +221,17 @@ void World::step_midpoint(double h) {
   // dynamic sides at the start, driven sides at the end.
   ua0_.resize(n);
   ub0_.resize(n);
+  double lever2 = 0;  // the longest arc-centre lever, squared (newton_remainder)
   for (size_t k = 0; k < n; ++k) {
     ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
     ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
+    lever2 = std::max({lever2, ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
   }
+  double radius = 0;  // and a rolling contact's offset: the lever grows by twice its radius at most
+  if (has_rolling_)
+    for (size_t k = 0; k < n; ++k)
+      if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
+  const double lever = std::sqrt(lever2) + 2 * radius;
   anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
 
   const double tol = options_.tolerance;
@@ -235,6 +250,11 @@ void World::step_midpoint(double h) {
     m.couple_ab.resize(n);
     m.couple_ba.resize(n);
   }
+  // What this iteration's Newton step was (newton_remainder): its Jacobian exact (no turn stiffness floored, no
+  // correction limited) and, when it is tracked, its largest turn correction and the largest product of a body's
+  // turn correction and its rows' impulse corrections (their 1-norms).
+  bool exact = true;
+  double dt_max = 0, cross_max = 0;
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
@@ -306,7 +326,8 @@ void World::step_midpoint(double h) {
       // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
       // instead of a singular one (the answer is the same; the iteration's path is not).
       const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
-      const double inv_jac = 1 / std::max(jac, 0.05);
+      if (!(jac >= kJacFloor)) exact = false;
+      const double inv_jac = 1 / std::max(jac, kJacFloor);
       m.inv_jac[i] = inv_jac;
       if (has_rolling_) {  // the exact Newton's terms (rolling_newton above)
         m.jac[i] = jac;
@@ -323,22 +344,36 @@ void World::step_midpoint(double h) {
     worst_rho = std::isfinite(rho_excess) ? std::max(worst_rho, rho_excess) : kInfinity;
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
-  const auto turn_by = [&](int i, double dt) HOT_INLINE {
+  // With `track` (std::true_type) it records what newton_remainder needs; dl is the sum of the 1-norms of the
+  // impulse corrections of the body's rows.
+  const auto turn_by = [&](int i, double dt, auto track, double dl) HOT_INLINE {
     const double t = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
+    if constexpr (decltype(track)::value) {
+      if (t != m.t[i] + dt) exact = false;  // limited (or not finite)
+      dt_max = std::max(dt_max, std::abs(dt));
+      cross_max = std::max(cross_max, std::abs(dt) * dl);
+    }
     m.t[i] = t;
     m.kt[i] = 1 / (1 + t * t);
   };
   // A body's correction once its rows' are known: dt = (-rho + h / (4 I) sum sigma mid x dL) / jac.
-  const auto correct_body = [&](int i, int prev, int next) HOT_INLINE {
-    double dang = 0;
+  const auto correct_body = [&](int i, int prev, int next, auto track) HOT_INLINE {
+    double dang = 0, dl = 0;
     if (prev >= 0) dang -= cross(m.mid_b[prev], m.dlam[prev]);
     if (next >= 0) dang += cross(m.mid_a[next], m.dlam[next]);
-    turn_by(i, (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i]);
+    if constexpr (decltype(track)::value) {
+      if (prev >= 0) dl += m.dlam[prev].cwiseAbs().sum();
+      if (next >= 0) dl += m.dlam[next].cwiseAbs().sum();
+    }
+    turn_by(i, (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i], track, dl);
   };
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
   double last_rho = kInfinity, final_gap = 0;
   bool expect_converged = m.guess_was_right;
+  bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   for (int iteration = 0;; ++iteration) {
+    exact = true;
+    dt_max = cross_max = 0;
     if (forced) {  // the users' forces' moments at their midpoint levers, and their loads along the end levers
       std::fill(m.force_ang.begin(), m.force_ang.end(), 0.0);
       std::fill(m.force_stiff.begin(), m.force_stiff.end(), 0.0);
@@ -473,28 +508,84 @@ void World::step_midpoint(double h) {
     }
     if (iteration >= options_.max_iterations || !std::isfinite(worst_gap) || !std::isfinite(worst_rho)) break;
     expect_converged = worst_gap < kNearlyThere * tol && worst_rho < kNearlyThere * tol;
-    // Back-substitution: each row's correction, and each body's as soon as its rows' are known.
-    if (n > 0 && has_rolling_) {
-      m.newton3.backward(m.dx, [&](int k) HOT_INLINE {
-        const Row& r = rows_[static_cast<size_t>(k)];
-        const Vec3& x = m.dx[k];
-        m.lam[k] += x.head<2>();
-        const bool bk = bodies_[r.b].kinematic;
-        if (!r.link_prev && !bodies_[r.a].kinematic)
-          turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
-                        (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a]);
-        if (!bk) turn_by(r.b, x(2));
-      });
-    } else if (n > 0) {
-      newton_.backward(m.dlam, [&](int k) HOT_INLINE {
-        const Row& r = rows_[static_cast<size_t>(k)];
-        m.lam[k] += m.dlam[k];
-        if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1);
-        if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k);
-      });
-    }
-    for (const int b : loose_bodies_) correct_body(b, -1, -1);
+    // Back-substitution: each row's correction, and each body's as soon as its rows' are known. When the iterate was
+    // close (as expect_converged), the corrections' sizes are tracked for newton_remainder.
+    const auto update = [&](auto track) HOT_INLINE {
+      constexpr bool kTrack = decltype(track)::value;
+      if (n > 0 && has_rolling_) {
+        m.newton3.backward(m.dx, [&](int k) HOT_INLINE {
+          const Row& r = rows_[static_cast<size_t>(k)];
+          const Vec3& x = m.dx[k];
+          m.lam[k] += x.head<2>();
+          // (the rows run backwards: row k + 1's correction, the other of body b's rows, is known)
+          double dl = 0, dl_next = 0;
+          if constexpr (kTrack) {
+            dl = x.head<2>().cwiseAbs().sum();
+            if (r.shares_next) dl_next = m.dx[k + 1].head<2>().cwiseAbs().sum();
+          }
+          const bool bk = bodies_[r.b].kinematic;
+          if (!r.link_prev && !bodies_[r.a].kinematic)
+            turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
+                          (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a], track, dl);
+          if (!bk) turn_by(r.b, x(2), track, dl + dl_next);
+        });
+      } else if (n > 0) {
+        newton_.backward(m.dlam, [&](int k) HOT_INLINE {
+          const Row& r = rows_[static_cast<size_t>(k)];
+          m.lam[k] += m.dlam[k];
+          if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1, track);
+          if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k, track);
+        });
+      }
+      for (const int b : loose_bodies_) correct_body(b, -1, -1, track);
+    };
+    const bool track = expect_converged && exact && !forced && (cf == 0 || has_rolling_);
+    if (track)
+      update(std::true_type{});
+    else
+      update(std::false_type{});
     ++st.iterations;
+    // newton_remainder: after an exact Newton step what is left of the residual is the equations' second-order
+    // remainder in the correction: the gaps and vbar are linear in the impulses, the levers are the Cayley map's of
+    // the turns. Let dt be the largest turn correction, L the longest lever with a rolling contact's 2 r added,
+    // |d end / d t| <= |u| 2 and |d^2 end / d t^2| <= 5.3 |u| for |t| <= 1 (a contact's offset turns with both of
+    // its bodies, each by atan t: its slopes and curvatures are below r times those), mid = (u + end) / 2, and two
+    // rows a body. A gap (two turns, each by at most dt) moves by at most (5.3 L / 2) (2 dt)^2 = 10.6 L dt^2 beyond its
+    // linear part; a body's angular residual times its radius of gyration, through its rows' moments (h / 4I) mid x L,
+    // by at most (h / 4I) rg (2 (2.65 L / 2) (2 dt)^2 |L| + 1.5 L X) with X = cross_max: (the slope of mid in the
+    // turns times the change of the turns) times (the change of the impulse) over the body's rows, a neighbour's turn
+    // included through a rolling contact. Both bounds are taken twice; when they are kRemainderShare of the
+    // tolerances, the pass that would measure this iterate would find it converged, and it is not run: the gaps are
+    // measured at the end state instead (below; a few operations a row instead of the pass's levers and residuals).
+    if (track && exact) {
+      const double gap_bound = 2 * 10.6 * lever * dt_max * dt_max;
+      const double rho_limit = kRemainderShare * kRhoShare * tol;
+      if (gap_bound <= kRemainderShare * tol && 2 * spin_gyration * lever * 1.5 * cross_max <= rho_limit) {
+        double lam_max2 = 0;  // (only now: a pass over the rows)
+        for (size_t k = 0; k < n; ++k) lam_max2 = std::max(lam_max2, m.lam[k].squaredNorm());
+        const double rho_bound =
+            2 * spin_gyration * lever * (10.6 * std::sqrt(lam_max2) * dt_max * dt_max + 1.5 * cross_max);
+        if (rho_bound <= rho_limit) {
+          predicted = true;
+          break;
+        }
+      }
+    }
+  }
+  if (predicted) {  // the bodies' mean velocities at the final impulses, as finish_body computes them
+    const auto mean_velocity = [&](int i, int prev, int next) HOT_INLINE {
+      Vec2 lin = Vec2::Zero();
+      if (prev >= 0) lin -= m.lam[prev];
+      if (next >= 0) lin += m.lam[next];
+      m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
+    };
+    for (const int b : loose_bodies_) mean_velocity(b, -1, -1);
+    for (size_t k = 0; k < n; ++k) {
+      const Row& r = rows_[k];
+      const int row = static_cast<int>(k);
+      if (!bodies_[r.a].kinematic && !r.link_prev) mean_velocity(r.a, -1, row);
+      if (!bodies_[r.b].kinematic) mean_velocity(r.b, row, r.shares_next ? row + 1 : -1);
+    }
   }
   m.guess_was_right = st.iterations == 0;
 
@@ -554,6 +645,31 @@ void World::step_midpoint(double h) {
   }
   t_ = t1;
   mark_state_changed();
+  if (predicted) {  // the gaps of the end state, less what rounding alone leaves of them (as residual_row)
+    double worst2 = 0, largest2 = 0;
+    for (size_t k = 0; k < n; ++k) {
+      const Row& r = rows_[k];
+      const BodyState& a = state_[r.a];
+      const BodyState& b = state_[r.b];
+      const Vec2 pa = a.x + a.q * r.ra, pb = b.x + b.q * r.rb;
+      Vec2 gap = pa - pb;
+      if (r.rolls) {  // and its contact's direction, the next step's start (the same bits as computed there)
+        const Vec2 offset = roll_offset(k, a, b);
+        gap += 2 * offset;
+        m.roll_u0[k] = offset / roll_[k].radius;
+      }
+      const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
+      const double excess = std::max(gap.norm() - floor, 0.0);
+      worst2 = std::isfinite(excess) ? std::max(worst2, excess * excess) : kInfinity;
+      largest2 = std::max(largest2, gap.squaredNorm());
+    }
+    final_gap = std::sqrt(worst2);
+    st.residual = std::sqrt(largest2);
+    m.roll_u0_version = state_version_;
+    m.roll_u0_structure = structure_;
+    st.converged = !(final_gap > tol);
+    ++st.bound_ends;
+  }
   // The hinges are closed to the tolerance (less rounding) at the iterate the positions were just set from: the next
   // step need not measure them again before it starts.
   if (st.converged) {

@@ -153,6 +153,9 @@ struct StepStats {
   // not enough).
   int substeps = 1, rejected = 0;
   double error_estimate = 0;
+  // Midpoint steps that ended on the bound of Newton's remainder instead of a pass measuring the last iterate; their
+  // residual is the end state's largest hinge gap (docs/model.md section 3.1).
+  int bound_ends = 0;
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
   // residual, converged only if both were.
@@ -163,6 +166,7 @@ struct StepStats {
     converged = converged && s.converged;
     work += s.work;
     dissipated += s.dissipated;
+    bound_ends += s.bound_ends;
   }
 };
 
@@ -548,6 +552,8 @@ class World {
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
     std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
     std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
+    // The state and structure for which a step's end measured roll_u0 (its predicted end, midpoint.cpp).
+    std::uint64_t roll_u0_version = 0, roll_u0_structure = 0;
     bool guess_was_right = false;  // the last step's first guess solved it: try this one's residual alone first
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
