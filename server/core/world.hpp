@@ -59,7 +59,7 @@ struct Options {
   SolverKind solver = SolverKind::Newton;  // all but projection, whose solve is its own (step.cpp)
   Stabilization stabilization = Stabilization::Position;
   double tolerance = 1e-12;   // hinge position error the constraint solve drives below [m]
-  int max_iterations = 20;    // per nonlinear solve
+  int max_iterations = 30;    // per nonlinear solve (docs/benchmarks.md: 20 left whipping chains short)
   Vec2 gravity{0.0, -9.81};   // [m/s^2]
   double linear_damping = 0;  // force -c m v on each part [1/s]
   double angular_damping = 0; // torque -c I w on each part [1/s]

@@ -616,7 +616,7 @@ const std::vector<AccuracyPreset>& accuracy_presets() {
   using core::Integrator, core::Stabilization, core::SolverKind;
   static const std::vector<AccuracyPreset> presets{
       {"fast", Integrator::SymplecticEuler, Stabilization::Position, SolverKind::Newton, 1e-6, 20, 1},
-      {"balanced", Integrator::Midpoint, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 1},
+      {"balanced", Integrator::Midpoint, Stabilization::Position, SolverKind::Newton, 1e-12, 30, 1},
       {"accurate", Integrator::RK4, Stabilization::Position, SolverKind::Newton, 1e-12, 20, 4},
   };
   return presets;
