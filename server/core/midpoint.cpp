@@ -548,7 +548,7 @@ void World::step_midpoint(double h) {
     // newton_remainder: after an exact Newton step what is left of the residual is the equations' second-order
     // remainder in the correction: the gaps and vbar are linear in the impulses, the levers are the Cayley map's of
     // the turns. Let dt be the largest turn correction, L the longest lever with a rolling contact's 2 r added,
-    // |d end / d t| <= |u| 2 and |d^2 end / d t^2| <= 5.3 |u| for |t| <= 1 (a contact's offset turns with both of
+    // |d end / d t| <= 2 |u| and |d^2 end / d t^2| <= 5.3 |u| for |t| <= 1 (a contact's offset turns with both of
     // its bodies, each by atan t: its slopes and curvatures are below r times those), mid = (u + end) / 2, and two
     // rows a body. A gap (two turns, each by at most dt) moves by at most (5.3 L / 2) (2 dt)^2 = 10.6 L dt^2 beyond its
     // linear part; a body's angular residual times its radius of gyration, through its rows' moments (h / 4I) mid x L,
