@@ -499,6 +499,7 @@ void World::step_midpoint(double h) {
     }
     const double worst_gap = std::sqrt(worst_gap2);
     st.residual = std::sqrt(largest_gap2);
+    st.angular_residual = worst_rho;
     const bool stalled = worst_rho > kStall * last_rho;
     last_rho = worst_rho;
     if (!(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled))) {
@@ -567,6 +568,7 @@ void World::step_midpoint(double h) {
             2 * spin_gyration * lever * (10.6 * std::sqrt(lam_max2) * dt_max * dt_max + 1.5 * cross_max);
         if (rho_bound <= rho_limit) {
           predicted = true;
+          st.angular_residual = rho_bound;
           break;
         }
       }

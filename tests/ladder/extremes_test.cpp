@@ -306,6 +306,27 @@ TEST(AtTheLimit, PokeAtOneMillisecondKeepsItsEnergyWithTheMidpointStep) {
   EXPECT_LT(r.hinge_error, 1e-9);
 }
 
+// A midpoint solve cut short (here by solver.max_iterations = 2 after the poke) says which of its equations were
+// left: the hinge gap and the angular residual, each against what the solve stops below (the tolerance, and 1e-4 of
+// it times the radius of gyration), and how many iterations it took. At least one of the two must be above its line
+// (to the 3 significant digits they are printed with), or the solve would not have been reported as stopped.
+TEST(AtTheLimit, AStoppedMidpointSolveNamesItsGapAndItsAngularResidual) {
+  const PokeRun r = poke_at_one_millisecond({"solver.max_iterations=2"});
+  int stopped = 0;
+  for (const std::string& w : r.warnings) {
+    double gap = -1, angular = -1;
+    int iterations = -1;
+    if (std::sscanf(w.c_str(), "hinge solve stopped at residual %lf m (angular residual %lf m, after %d iterations)",
+                    &gap, &angular, &iterations) != 3)
+      continue;
+    ++stopped;
+    constexpr double kPrinted = 1 - 5e-3;
+    EXPECT_TRUE(gap > kPrinted * 1e-12 || angular > kPrinted * 1e-16) << w;
+    EXPECT_GE(iterations, 2) << w;
+  }
+  EXPECT_GT(stopped, 0) << (r.warnings.empty() ? std::string("no warning") : r.warnings.front());
+}
+
 TEST(AtTheLimit, ReducedStepTakenBackByTheWatchdogStartsAgainFromWhereItWas) {
   scene::Simulation sim(shipped("free-chain.toml", {"ladder.blocks=10", "sim.integrator=reduced"}));
   const double dke = sim.ladder().poke(5, sim.ladder().corner(5, 1), core::Vec2(1.0, 0.0));
