@@ -221,16 +221,15 @@ void World::step_midpoint(double h) {
   // dynamic sides at the start, driven sides at the end.
   ua0_.resize(n);
   ub0_.resize(n);
-  double lever2 = 0;  // the longest arc-centre lever, squared (newton_remainder)
+  // The longest arc-centre lever and contact radius (newton_remainder): a rolling contact's offset adds at most
+  // twice its radius to a lever.
+  double lever2 = 0, radius = 0;
   for (size_t k = 0; k < n; ++k) {
     ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
     ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
     lever2 = std::max({lever2, ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
+    if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
   }
-  double radius = 0;  // and a rolling contact's offset: the lever grows by twice its radius at most
-  if (has_rolling_)
-    for (size_t k = 0; k < n; ++k)
-      if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
   const double lever = std::sqrt(lever2) + 2 * radius;
   anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
 
@@ -255,6 +254,22 @@ void World::step_midpoint(double h) {
   // turn correction and its rows' impulse corrections (their 1-norms).
   bool exact = true;
   double dt_max = 0, cross_max = 0;
+  // A dynamic body's vbar - v at the current impulses of its rows (`prev`, `next` as finish_body's).
+  const auto mean_velocity = [&](int i, int prev, int next) HOT_INLINE {
+    Vec2 lin = Vec2::Zero();
+    if (prev >= 0) lin -= m.lam[prev];
+    if (next >= 0) lin += m.lam[next];
+    m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
+  };
+  // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
+  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess.
+  const auto count_gap = [](const Vec2& gap, const Vec2& pa, const Vec2& pb, double& worst2, double& largest2)
+      HOT_INLINE {
+    const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
+    const double excess = std::max(gap.norm() - floor, 0.0);
+    worst2 = std::isfinite(excess) ? std::max(worst2, excess * excess) : kInfinity;
+    largest2 = std::max(largest2, gap.squaredNorm());
+  };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
@@ -262,7 +277,6 @@ void World::step_midpoint(double h) {
   const auto finish_body = [&](int i, int prev, int next, double& worst_rho, auto newton) HOT_INLINE {
     constexpr bool kNewton = decltype(newton)::value;
     const double ti = m.t[i], k = m.kt[i];
-    Vec2 lin = Vec2::Zero();
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
     // With rolling rows (rolling_newton above): sum of dmid_i x L over them, and dmid_j x L per row.
     double own_roll = 0, couple_prev = 0, couple_next = 0;
@@ -281,7 +295,6 @@ void World::step_midpoint(double h) {
       }
       m.mid_b[prev] = v.mid;
       m.end_b[prev] = v.end;
-      lin -= l;
       ang -= cross(v.mid, l);
       ang_abs += std::abs(cross(v.mid, l));
       if (cf != 0) {  // the friction impulse h cf (wbar_b - wbar_a) on a, its opposite on b; wbar = 2 t / h
@@ -305,7 +318,6 @@ void World::step_midpoint(double h) {
       }
       m.mid_a[next] = v.mid;
       m.end_a[next] = v.end;
-      lin += l;
       ang += cross(v.mid, l);
       ang_abs += std::abs(cross(v.mid, l));
       if (cf != 0) {
@@ -319,7 +331,7 @@ void World::step_midpoint(double h) {
       stiff += m.force_stiff[i];
     }
     const double c = m.spin_gain[i], damp = m.damp[i];
-    m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;  // vbar - v
+    mean_velocity(i, prev, next);
     const double rho = ti * damp - 0.5 * h * state_[i].w - c * ang;
     m.rho[i] = rho;
     if constexpr (kNewton) {
@@ -414,12 +426,7 @@ void World::step_midpoint(double h) {
       const Vec2 pa = ak ? Vec2(a.x + m.end_a[k]) : Vec2(a.x + h * (a.v + m.vbar[r.a]) + m.end_a[k]);
       const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
       const Vec2 gap = pa - pb;
-      // Less what rounding alone leaves of it: a few ulps of the positions (6 km down a chain of 100 000 blocks
-      // they are 1e-12 m).
-      const double gap_floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
-      const double excess = std::max(gap.norm() - gap_floor, 0.0);
-      worst_gap2 = std::isfinite(excess) ? std::max(worst_gap2, excess * excess) : kInfinity;
-      largest_gap2 = std::max(largest_gap2, gap.squaredNorm());
+      count_gap(gap, pa, pb, worst_gap2, largest_gap2);
       return gap;
     };
     // The same, then the row's Newton blocks, factored and forward-substituted (BlockTridiag::factor_forward).
@@ -575,12 +582,6 @@ void World::step_midpoint(double h) {
     }
   }
   if (predicted) {  // the bodies' mean velocities at the final impulses, as finish_body computes them
-    const auto mean_velocity = [&](int i, int prev, int next) HOT_INLINE {
-      Vec2 lin = Vec2::Zero();
-      if (prev >= 0) lin -= m.lam[prev];
-      if (next >= 0) lin += m.lam[next];
-      m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
-    };
     for (const int b : loose_bodies_) mean_velocity(b, -1, -1);
     for (size_t k = 0; k < n; ++k) {
       const Row& r = rows_[k];
@@ -647,7 +648,7 @@ void World::step_midpoint(double h) {
   }
   t_ = t1;
   mark_state_changed();
-  if (predicted) {  // the gaps of the end state, less what rounding alone leaves of them (as residual_row)
+  if (predicted) {  // the gaps of the end state (as residual_row counts an iterate's)
     double worst2 = 0, largest2 = 0;
     for (size_t k = 0; k < n; ++k) {
       const Row& r = rows_[k];
@@ -660,10 +661,7 @@ void World::step_midpoint(double h) {
         gap += 2 * offset;
         m.roll_u0[k] = offset / roll_[k].radius;
       }
-      const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
-      const double excess = std::max(gap.norm() - floor, 0.0);
-      worst2 = std::isfinite(excess) ? std::max(worst2, excess * excess) : kInfinity;
-      largest2 = std::max(largest2, gap.squaredNorm());
+      count_gap(gap, pa, pb, worst2, largest2);
     }
     final_gap = std::sqrt(worst2);
     st.residual = std::sqrt(largest2);

@@ -445,7 +445,7 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
   piece_work_ += st.work;
   if (!st.converged && !warned_) {
     std::string what = "hinge solve stopped at residual " + format_number(st.residual) + " m";
-    if (st.angular_residual > 0)  // the midpoint step: its angular equations may be what stopped it
+    if (world_.options().integrator == core::Integrator::Midpoint)  // its angular equations may be what stopped it
       what += " (angular residual " + format_number(st.angular_residual) + " m, after " +
               std::to_string(st.iterations) + " iterations)";
     emit(EventKind::SolverWarning, 0, 0, what);
