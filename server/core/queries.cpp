@@ -118,7 +118,7 @@ bool World::finite() const {
 // with the row impulses the solver applied and P the weld point. Every lever arm is taken at mid-step (the mean
 // of its start and end positions): the impulses act through the step, and end-of-step arms would be off by
 // O(w h) (40 % of the moment at w = 100 rad/s and h = 1 ms; second order at mid-step).
-double World::weld_moment(int pa, int pb) const {
+double World::weld_moment(int pa, int pb, int about_a, int about_b) const {
   const int j = find_joint(pa, pb);
   if (j < 0 || joints_[j].kind != JointKind::Weld)
     throw std::invalid_argument("weld_moment: particles " + std::to_string(pa) + " and " + std::to_string(pb) +
@@ -206,7 +206,17 @@ double World::weld_moment(int pa, int pb) const {
     weld_point += (jt.pa == pb ? 1.0 : -1.0) * jt.radius * u;
   }
   const Vec2 j_weld = m * (v1 - v0) - h * f_ext - j_rows;
-  const double angular = inertia * (s1.w - s0.w) - h * tau_ext - m_rows - cross(weld_point - c, j_weld);
+  Vec2 about = weld_point;
+  if (about_a >= 0 || about_b >= 0) {  // the weld's force, applied at weld_point, has a moment about another point
+    const auto point = [&](int p) {
+      if (p < 0 || p >= static_cast<int>(particles_.size()) || parts_[particles_[p].part].body != body)
+        throw std::invalid_argument("weld_moment: particle " + std::to_string(p) + " is not on the welded body");
+      const Part& part = parts_[particles_[p].part];
+      return mid(part.rel_x + part.rel_q * particles_[p].local);
+    };
+    about = 0.5 * (point(about_a) + point(about_b));
+  }
+  const double angular = inertia * (s1.w - s0.w) - h * tau_ext - m_rows - cross(about - c, j_weld);
   return angular / h;
 }
 

@@ -286,8 +286,9 @@ class World {
   bool finite() const;              // no NaN or infinity anywhere in the state
 
   // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
-  // particle pb's side of it, taken about the weld point. Used to decide when a lock lets go.
-  double weld_moment(int pa, int pb) const;
+  // particle pb's side of it, taken about the weld point, or, given particles about_a and about_b of the welded
+  // body, about their midpoint at mid-step (a face contact's other end). Used to decide when a lock lets go.
+  double weld_moment(int pa, int pb, int about_a = -1, int about_b = -1) const;
 
  private:
   struct Particle { double mass; int part; Vec2 local; };

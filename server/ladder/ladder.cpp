@@ -244,6 +244,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   }
   measure_coef_.resize(static_cast<size_t>(spec.blocks));
   released_at_.assign(static_cast<size_t>(spec.blocks), -std::numeric_limits<double>::infinity());
+  flipped_at_.assign(static_cast<size_t>(spec.blocks), -std::numeric_limits<double>::infinity());
   for (int k = 1; k < spec.blocks; ++k) {
     const int c = corner_of(k);
     hinges_[k] = {c, HingeStatus::Hinged, 0};
@@ -603,28 +604,58 @@ double Ladder::locate(const core::Snapshot& start, const std::vector<double>& s0
 
 // Algorithm 1's action for a hinge that entered a forbidden quadrant: flip-flop (Algorithm 2) when the pair is
 // folded (|a + b| large), the stop (Algorithm 3's lock, or an impact) when it is straight.
+//
+// A pair that folds again within a step of its own flip-flop may be pressed face to face at both ends: the flip-flop
+// left it with no relative turn and the loads closed it about the new hinge at once. Flipping back then repeats
+// without end, a flip-flop every few nanoseconds with nothing between (a block grabbed and held below a hanging pair
+// did it: 64 a step, each step taking 300 trial steps to locate them). So such a fold's face contact is judged by
+// its moments about both ends, as a lock is (contact_moments()): pressed at both, the pair locks face to face, and
+// it opens about whichever end the loads first pull (check_unlocks()); otherwise it flip-flops as Algorithm 2 says.
+// (docs/model.md section 5.)
 void Ladder::restructure(int k) {
+  const int c = hinges_[k].corner;
+  if (!folded(k)) {
+    meet_stop(k);
+    return;
+  }
+  // Face (default): at the fold the two blocks meet face to face, both corner pairs at once, so the meeting is a
+  // momentary weld (the combine on the hinged pair) before the old hinge is undone. Corner: only the far corners
+  // meet (see FlipImpact), the paper's rule taken literally.
+  const double before = blocks_kinetic();
+  if (spec_.flip_impact == FlipImpact::Face) {
+    world_.combine(particle(k - 1, c), particle(k, c));
+    if (world_.time() - flipped_at_[static_cast<size_t>(k)] <= step_h_) {
+      contact_moments(moments_, k);
+      const double moment = moments_[static_cast<size_t>(k)], other = other_moments_[static_cast<size_t>(k)];
+      if (moment >= -spec_.unlock_threshold && other >= -spec_.unlock_threshold) {
+        hinges_[k].status = HingeStatus::Locked;
+        emit(EventKind::Lock, k, before - blocks_kinetic(), "face to face, pressed with " + format_number(moment) +
+                                                                " N m at the hinge and " + format_number(other) +
+                                                                " N m at the other end");
+        return;
+      }
+    }
+    world_.separate(particle(k - 1, c), particle(k, c));  // the weld lets go
+  }
+  move_hinge(k);
+  emit(EventKind::FlipFlop, k, before - blocks_kinetic());
+}
+
+bool Ladder::folded(int k) const {
+  const int c = hinges_[k].corner;
+  const Vec2 a = corner(k - 1, c ^ 1) - corner(k - 1, c), b = corner(k, c ^ 1) - corner(k, c);
+  return (a.normalized() + b.normalized()).norm() > std::sqrt(2.0);
+}
+
+void Ladder::move_hinge(int k) {
   HingeInfo& h = hinges_[k];
   const int c = h.corner;
-  const Vec2 a = corner(k - 1, c ^ 1) - corner(k - 1, c), b = corner(k, c ^ 1) - corner(k, c);
-  if ((a.normalized() + b.normalized()).norm() > std::sqrt(2.0)) {
-    // Face (default): at the fold the two blocks meet face to face, both corner pairs at once, so the meeting
-    // is a momentary weld (the combine on the hinged pair) before the old hinge is undone. Corner: only the far
-    // corners meet (see FlipImpact).
-    const double before = blocks_kinetic();
-    if (spec_.flip_impact == FlipImpact::Face) {
-      world_.combine(particle(k - 1, c), particle(k, c));
-      world_.separate(particle(k - 1, c), particle(k, c));  // the weld lets go
-    }
-    world_.separate(particle(k - 1, c), particle(k, c));                          // Algorithm 2, line 1
-    world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1), roll_radius());  // lines 2-3
-    h.corner = c ^ 1;
-    set_measure_coef(k);
-    ++h.flips;
-    emit(EventKind::FlipFlop, k, before - blocks_kinetic());
-  } else {
-    meet_stop(k);
-  }
+  world_.separate(particle(k - 1, c), particle(k, c));                          // Algorithm 2, line 1
+  world_.combine(particle(k - 1, c ^ 1), particle(k, c ^ 1), roll_radius());  // lines 2-3
+  h.corner = c ^ 1;
+  set_measure_coef(k);
+  ++h.flips;
+  flipped_at_[static_cast<size_t>(k)] = world_.time();
 }
 
 // A straight pair turning into the forbidden half meets its stop, a one-sided contact (docs/model.md section 5). The
@@ -694,27 +725,36 @@ bool Ladder::take_back_release(int k) {
 // over a short one, the impulse that closes a hinge gap of up to the solver's tolerance would swamp it.)
 void Ladder::contact_moments(std::vector<double>& moments, int meeting) {
   moments.assign(hinges_.size(), 0.0);
+  other_moments_.assign(hinges_.size(), 0.0);
   probe_ = world_;  // a copy (its buffers reused), so that the world keeps its own last step's figures and caches
   core::Options euler = world_.options();
   euler.integrator = core::Integrator::Euler;
   euler.stabilization = core::Stabilization::None;
   euler.adaptive = false;
   probe_.set_options(euler);
+  // After a step the grips' forces of that step have run out: the probe takes those of the next step (from this
+  // state, as advance() will), or a lock that a hand presses would be judged without the hand.
+  if (!grips_.empty() && !(world_.time() < grips_until_)) add_grip_forces(probe_, grips_h_);
   probe_.step(1e-3 * step_h_, false);
   for (size_t k = 1; k < hinges_.size(); ++k)
-    if (hinges_[k].status == HingeStatus::Locked || static_cast<int>(k) == meeting)
+    if (hinges_[k].status == HingeStatus::Locked || static_cast<int>(k) == meeting) {
       moments[k] = contact_moment(probe_, static_cast<int>(k));
+      if (folded(static_cast<int>(k))) other_moments_[k] = contact_moment(probe_, static_cast<int>(k), true);
+    }
 }
 
 // The moment [N m] the weld of hinge k carried over `world`'s last step, signed so that > 0 pushes block k out of the
 // forbidden half (a contact's sense) and < 0 pulls it back in. Turning block k by +dphi changes s by
-// sigma (a.b) dphi, so the allowed sense is -sign(sigma a.b).
-double Ladder::contact_moment(const core::World& world, int k) const {
-  const int c = hinges_[k].corner;
-  const double moment = world.weld_moment(particle(k - 1, c), particle(k, c));
-  const Vec2 a = (corner(k - 1, c ^ 1) - corner(k - 1, c)).normalized();
-  const Vec2 b = (corner(k, c ^ 1) - corner(k, c)).normalized();
-  return side_sign(k - 1, c) * a.dot(b) > 0 ? -moment : moment;
+// sigma (a.b) dphi, so the allowed sense is -sign(sigma a.b). With other_end, a folded pair's: about the midpoint of
+// the blocks' other ends, signed for a hinge there (the sense that opens the pair about that end).
+double Ladder::contact_moment(const core::World& world, int k, bool other_end) const {
+  const int c = hinges_[k].corner, e = other_end ? c ^ 1 : c;
+  const double moment = other_end ? world.weld_moment(particle(k - 1, c), particle(k, c), particle(k - 1, e),
+                                                      particle(k, e))
+                                  : world.weld_moment(particle(k - 1, c), particle(k, c));
+  const Vec2 a = (corner(k - 1, e ^ 1) - corner(k - 1, e)).normalized();
+  const Vec2 b = (corner(k, e ^ 1) - corner(k, e)).normalized();
+  return side_sign(k - 1, e) * a.dot(b) > 0 ? -moment : moment;
 }
 
 // Algorithm 4's trigger: after each step, a lock lets go as soon as its contact, instead of pushing block k out of the
@@ -726,16 +766,27 @@ void Ladder::check_unlocks() {
   const auto locked = [](const HingeInfo& h) { return h.status == HingeStatus::Locked; };
   while (std::any_of(hinges_.begin(), hinges_.end(), locked)) {
     contact_moments(moments_);
+    // A face-to-face lock's pull is the harder of its two ends' (other_moments_ is 0 for a straight lock).
+    const auto pull = [&](size_t j) { return std::min(moments_[j], other_moments_[j]); };
     int k = -1;
     for (size_t j = 1; j < hinges_.size(); ++j)
-      if (locked(hinges_[j]) && moments_[j] < -spec_.unlock_threshold && (k < 0 || moments_[j] < moments_[k]))
+      if (locked(hinges_[j]) && pull(j) < -spec_.unlock_threshold && (k < 0 || pull(j) < pull(static_cast<size_t>(k))))
         k = static_cast<int>(j);
     if (k < 0) return;
     const int c = hinges_[k].corner;
     world_.separate(particle(k - 1, c), particle(k, c));
     hinges_[k].status = HingeStatus::Hinged;
-    released(k);
-    emit(EventKind::Unlock, k, 0, "pulled open with " + format_number(-moments_[k]) + " N m");
+    const double m = moments_[static_cast<size_t>(k)], other = other_moments_[static_cast<size_t>(k)];
+    if (m <= other) {
+      released(k);
+      emit(EventKind::Unlock, k, 0, "pulled open with " + format_number(-m) + " N m");
+    } else {  // a face-to-face pair opening about its other end: the hinge moves there, with nothing to land
+      move_hinge(k);
+      released(k);
+      emit(EventKind::Unlock, k, 0, "pulled open at the blocks' other ends with " + format_number(-other) +
+                                        " N m: the hinge moved there");
+      emit(EventKind::FlipFlop, k, 0);
+    }
   }
 }
 
@@ -911,23 +962,30 @@ void Ladder::apply(const Action& action) {
 // w h < 2, and 0.2 keeps it accurate; the chain attached to the block only adds inertia, so the block alone is the
 // stiffest case. The torque is applied as a couple at the block's two ends.
 void Ladder::apply_grips(double h) {
+  grips_until_ = time() + h;
+  grips_h_ = h;
+  add_grip_forces(world_, h);
+}
+
+// Each grip's spring and damper, from `world`'s state, as forces until world.time() + h.
+void Ladder::add_grip_forces(core::World& world, double h) const {
   for (const Grip& g : grips_) {
     const int part = g.block;
     const double m = block_mass(g.block);
     const double w = std::min(g.stiffness > 0 ? std::sqrt(g.stiffness / m) : 100.0, 0.2 / h);
-    const core::Rot q = world_.part_rotation(part);
+    const core::Rot q = world.part_rotation(part);
     const Vec2 r = q * g.local;
-    const Vec2 p = world_.part_position(part) + r;
-    const double omega = world_.part_omega(part);
-    const Vec2 v = world_.part_velocity(part) + omega * Vec2(-r.y(), r.x());
-    world_.add_force(part, g.local, m * w * w * (g.target - p) - 2 * m * w * v, time() + h);
+    const Vec2 p = world.part_position(part) + r;
+    const double omega = world.part_omega(part);
+    const Vec2 v = world.part_velocity(part) + omega * Vec2(-r.y(), r.x());
+    world.add_force(part, g.local, m * w * w * (g.target - p) - 2 * m * w * v, world.time() + h);
     if (!g.hold_angle) continue;
     const double inertia = m * (spec_.length * spec_.length + spec_.thickness * spec_.thickness) / 12;
-    const double torque = inertia * w * w * (g.angle - world_.part_angle(part)) - 2 * inertia * w * omega;
+    const double torque = inertia * w * w * (g.angle - world.part_angle(part)) - 2 * inertia * w * omega;
     const double a = 0.5 * spec_.length;
     const Vec2 arm = q * Vec2(a, 0), f = torque / (2 * a * a) * Vec2(-arm.y(), arm.x());
-    world_.add_force(part, Vec2(a, 0), f, time() + h);
-    world_.add_force(part, Vec2(-a, 0), -f, time() + h);
+    world.add_force(part, Vec2(a, 0), f, world.time() + h);
+    world.add_force(part, Vec2(-a, 0), -f, world.time() + h);
   }
 }
 

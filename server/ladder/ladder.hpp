@@ -201,7 +201,9 @@ class Ladder {
   void released(int k);
   bool take_back_release(int k);
   void contact_moments(std::vector<double>& moments, int meeting = -1);
-  double contact_moment(const core::World& world, int k) const;
+  double contact_moment(const core::World& world, int k, bool other_end = false) const;
+  bool folded(int k) const;   // hinge k's pair is nearer face to face than straight
+  void move_hinge(int k);     // the hinge to the blocks' other ends (Algorithm 2, lines 1-3)
   double blocks_kinetic() const;
   void book_motion(const core::Energy& e0);
   void check_unlocks();
@@ -211,6 +213,8 @@ class Ladder {
   // `start`: the world as it is now, when the caller has saved it already.
   void step_guarded(double h, int depth, const core::Snapshot* start = nullptr);
   void apply_grips(double h);
+  void add_grip_forces(core::World& world, double h) const;
+  double grips_until_ = 0, grips_h_ = 0;  // the grips' forces last applied: until when, and for what step
 
   LadderSpec spec_;
   core::World world_;
@@ -234,9 +238,14 @@ class Ladder {
   double step_h_ = 0;          // the step advance_by() is taking (contact_moments() steps a thousandth of it)
   core::World probe_;          // contact_moments()'s copy of the world for its trial step (reused buffers)
   std::vector<double> moments_;  // contact_moments()'s answer (reused)
+  // contact_moments()'s moments of the folded pairs' face contacts about their other ends, where the pair would open
+  // the other way (index k; 0 for a straight pair).
+  std::vector<double> other_moments_;
   // Per hinge, when its contact was last let go (an impact or an unlock): a meeting at that same instant means that the
   // free motion turned the pair straight back in, so the contact must hold (meet_stop()).
   std::vector<double> released_at_;
+  // Per hinge, when it last flip-flopped: a fold again within a step of that is a face contact (restructure()).
+  std::vector<double> flipped_at_;
   // The energy ledger (losses()): the work the accepted steps of the piece under way put in, what was lost since the
   // last flip-flop (reported with the next one), and the total at the last flip-flop.
   double piece_work_ = 0;

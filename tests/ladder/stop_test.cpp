@@ -131,6 +131,98 @@ TEST(Stop, PressedPairStaysLockedAndLetsGoTheStepThePushEnds) {
   EXPECT_LT(sim.ladder().hinge_measure(1), -1e-3);  // swung open
 }
 
+// The first number in an event's detail after `key`; details print 3 significant digits, within kDigits of the value.
+constexpr double kDigits = 5e-3;
+double number_after(const std::string& detail, const std::string& key) {
+  const size_t at = detail.find(key);
+  return at == std::string::npos ? std::nan("") : std::stod(detail.substr(at + key.size()));
+}
+
+// A pair pressed face to face. Without gravity, block 1 of a held pair is kicked counter-clockwise and folds up
+// against block 0 (a flip-flop: the hinge moves to the far ends, block 1 stops); a push at its centre straight into
+// block 0's face, F from the start, then closes it again about the new hinge at once. Flipping back would close it
+// about the old one just as fast (before: 9100 flip-flops in 0.3 s, nanoseconds apart). Instead the faces' contact
+// locks, its moments about both ends F L / 2 (the push's lever, block 1 at rest). A pull F at block 1's hinged
+// corner, away from block 0, then opens the pair about the other end (F L less the push's F L / 2): the lock lets go
+// after the first step pulled, and the hinge moves back to the ends it left (an unlock and a flip-flop, nothing to
+// land).
+TEST(Stop, PairPressedFaceToFaceLocksAndOpensAboutTheEndPulled) {
+  scene::Simulation sim(held_pair({"sim.gravity=[0, 0]", "initial.kick_omega=20"}));
+  model::Ladder& l = sim.ladder();
+  const double force = 0.05;  // [N]
+  l.push(1, core::Vec2::Zero(), core::Vec2(-force, 0), 10);
+  const int first_corner = l.hinges()[1].corner;
+  std::vector<model::Event> events;
+  while (sim.time() < 0.3) {
+    sim.step();
+    for (const model::Event& e : sim.take_events()) events.push_back(e);
+  }
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].kind, EventKind::FlipFlop);
+  EXPECT_EQ(events[1].kind, EventKind::Lock);
+  EXPECT_LT(events[1].t - events[0].t, 1e-6) << "closed again at once";
+  EXPECT_NEAR(number_after(events[1].detail, "pressed with "), force * kL / 2, kDigits * force * kL / 2);
+  EXPECT_NEAR(number_after(events[1].detail, " N m at the hinge and "), force * kL / 2, kDigits * force * kL / 2);
+  EXPECT_NE(l.hinges()[1].corner, first_corner);
+  EXPECT_EQ(l.hinges()[1].status, model::HingeStatus::Locked);
+  // The pull acts at block 1's hinged corner, in its frame.
+  core::Vec2 centre;
+  double angle = 0;
+  l.block_pose(1, centre, angle);
+  const core::Vec2 end = core::Rot::of(angle).inverse() * (l.corner(1, l.hinges()[1].corner) - centre);
+  const double t_pull = sim.time();
+  l.push(1, end, core::Vec2(force, 0), 10);  // away from block 0's face, beside the push at the centre
+  events.clear();
+  while (sim.time() < t_pull + 0.05) {
+    sim.step();
+    for (const model::Event& e : sim.take_events()) events.push_back(e);
+  }
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].kind, EventKind::Unlock);
+  EXPECT_NE(events[0].detail.find("other ends"), std::string::npos) << events[0].detail;
+  EXPECT_NEAR(events[0].t, t_pull + sim.scene().dt, 1e-9);  // judged after the first step pulled
+  EXPECT_NEAR(number_after(events[0].detail, "other ends with "), force * kL / 2, kDigits * force * kL / 2);
+  EXPECT_EQ(events[1].kind, EventKind::FlipFlop);
+  EXPECT_EQ(events[1].energy_removed, 0);
+  EXPECT_EQ(l.hinges()[1].corner, first_corner);
+  EXPECT_EQ(l.hinges()[1].status, model::HingeStatus::Hinged);
+  EXPECT_LT(l.hinge_measure(1), -1e-3);  // swung open about the old ends
+}
+
+// A pair pressed into its stop by a hand: the grip's force counts when the lock is judged after a step, as it does at
+// the meeting. (The grip's force of a step runs out at its end, and the lock was judged without it: let go after each
+// step and met again in the next, a lock and an unlock every step.) Block 1 of a held pair, grabbed at its centre
+// and pulled past straight, locks and stays locked while held (before: 965 events in 0.5 s); released, gravity pulls
+// it open.
+TEST(Stop, PairHeldIntoItsStopByAGripStaysLocked) {
+  scene::Simulation sim(held_pair());
+  model::Ladder& l = sim.ladder();
+  const core::Vec2 hinge = l.corner(1, l.hinges()[1].corner);
+  // Turned clockwise about the hinge from hanging (diagonal vertical) through straight and 0.2 rad beyond.
+  const core::Rot turn = core::Rot::of(-(std::atan(kT / kL) + 0.2));
+  l.grab({.block = 1, .target = hinge + turn * (l.block_centre(1) - hinge)});
+  std::vector<model::Event> events;
+  while (sim.time() < 0.5) {
+    sim.step();
+    for (const model::Event& e : sim.take_events()) events.push_back(e);
+  }
+  // The grip brings it in fast, its damper pulling back: the first meeting may be an impact. Then one lock, for good.
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back().kind, EventKind::Lock);
+  EXPECT_LT(events.back().t, 0.1);
+  EXPECT_LE(events.size(), 2u);
+  EXPECT_EQ(l.hinges()[1].status, model::HingeStatus::Locked);
+  const double t_release = sim.time();
+  l.release(1);
+  sim.step();
+  const std::vector<model::Event> after = sim.take_events();
+  ASSERT_EQ(after.size(), 1u);
+  EXPECT_EQ(after[0].kind, EventKind::Unlock);
+  EXPECT_NEAR(after[0].t, t_release + sim.scene().dt, 1e-9);  // judged after the first step without the hand
+  // Only gravity acts then, its moment m g W / 2 about the hinge (block 1 at rest, held straight below block 0).
+  EXPECT_NEAR(number_after(after[0].detail, "pulled open with "), kM * kG * kT / 2, kDigits * kM * kG * kT / 2);
+}
+
 // The blocks' energy [J]: kinetic plus gravity, summed by block, the held top block left out (the hand moves it), so
 // that a block locked to the hand still counts (Ladder::energy() counts moving bodies only).
 double blocks_energy(const scene::Simulation& sim) {
