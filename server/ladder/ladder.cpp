@@ -441,7 +441,10 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
     step_guarded(0.5 * h, depth + 1);
     return;
   }
-  if (depth == 0) halving_ = false;
+  // A step taken whole ends an episode of halving, or of solves stopped short; a trial step of event location does
+  // not (locate() tries a failing step over and over at nearby lengths, and each success between would report the
+  // episode again: 27 warnings in one step were seen).
+  if (depth == 0 && !locating_) halving_ = false;
   const core::StepStats& st = world_.last_step();
   piece_work_ += st.work;
   if (!st.converged && !warned_) {
@@ -451,7 +454,7 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
               std::to_string(st.iterations) + " iterations)";
     emit(EventKind::SolverWarning, 0, 0, what);
   }
-  warned_ = !st.converged;
+  if (!st.converged || !locating_) warned_ = !st.converged;
 }
 
 // With the adaptive step on, the step is walked in the sub-steps the engine's error control suggests, each one
@@ -625,6 +628,13 @@ void Ladder::restructure(int k) {
   if (spec_.flip_impact == FlipImpact::Face) {
     world_.combine(particle(k - 1, c), particle(k, c));
     if (world_.time() - flipped_at_[static_cast<size_t>(k)] <= step_h_) {
+      if (released_at_[static_cast<size_t>(k)] == world_.time()) {  // as in meet_stop(): the contact holds
+        hinges_[k].status = HingeStatus::Locked;
+        if (!take_back_release(k))
+          emit(EventKind::Lock, k, before - blocks_kinetic(), "face to face: let go at this instant, the free motion "
+                                                              "closed the pair straight back");
+        return;
+      }
       contact_moments(moments_, k);
       const double moment = moments_[static_cast<size_t>(k)], other = other_moments_[static_cast<size_t>(k)];
       if (moment >= -spec_.unlock_threshold && other >= -spec_.unlock_threshold) {
@@ -632,6 +642,13 @@ void Ladder::restructure(int k) {
         emit(EventKind::Lock, k, before - blocks_kinetic(), "face to face, pressed with " + format_number(moment) +
                                                                 " N m at the hinge and " + format_number(other) +
                                                                 " N m at the other end");
+        return;
+      }
+      if (moment < other) {  // pulled open harder at the hinge it has: it opens there, and the hinge stays
+        world_.separate(particle(k - 1, c), particle(k, c));
+        released(k);
+        emit(EventKind::Impact, k, before - blocks_kinetic(), "face to face, pulled open at the hinge with " +
+                                                                  format_number(-moment) + " N m");
         return;
       }
     }
@@ -710,7 +727,9 @@ bool Ladder::take_back_release(int k) {
       l->removed[to] += e->energy_removed;
     }
     e->kind = EventKind::Lock;
-    e->detail = "pressed: the free motion turned the pair straight back into the stop (" + e->detail + " at first)";
+    e->detail = std::string(folded(k) ? "pressed: the free motion closed the pair face to face again ("
+                                      : "pressed: the free motion turned the pair straight back into the stop (") +
+                e->detail + " at first)";
     return true;
   }
   return false;
