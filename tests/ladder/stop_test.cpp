@@ -228,7 +228,7 @@ TEST(Stop, PairHeldIntoItsStopByAGripStaysLocked) {
 // A ladder let go at the top and held by one block below (two commands any client may send: break hinge 0, grab a
 // block where it is): the blocks above fall and fold onto each other, pressed face to face. Before, the pairs
 // flip-flopped back and forth nanoseconds apart, up to the 64 events a step allows (double-ripple.toml, block 3:
-// 8 160 events in 3 s, 67 in one step; tall.toml, block 10: 8 809 and 74), each step some 300 trial steps. Now no
+// 8 160 events in 3 s, 67 in one step; tall.toml, block 10: 8 809 and 74), each such step 100 times slower. Now no
 // step has more than a few events, no hinge flip-flops three times within a microsecond, and the faces' contacts
 // are met as contacts: face-to-face locks, and (on the rolling ladder) folds pulled open at the hinge they have.
 TEST(Stop, ALadderLetGoAndHeldByOneBlockMakesNoEventStorm) {
