@@ -629,13 +629,9 @@ void Ladder::restructure(int k) {
   if (spec_.flip_impact == FlipImpact::Face) {
     world_.combine(particle(k - 1, c), particle(k, c));
     if (world_.time() - flipped_at_[static_cast<size_t>(k)] <= step_h_) {
-      if (released_at_[static_cast<size_t>(k)] == world_.time()) {  // as in meet_stop(): the contact holds
-        hinges_[k].status = HingeStatus::Locked;
-        if (!take_back_release(k))
-          emit(EventKind::Lock, k, before - blocks_kinetic(), "face to face: let go at this instant, the free motion "
-                                                              "closed the pair straight back");
+      if (held_again(k, before, "face to face: let go at this instant, the free motion closed the pair straight "
+                                "back"))
         return;
-      }
       contact_moments(moments_, k);
       const double moment = moments_[static_cast<size_t>(k)], other = other_moments_[static_cast<size_t>(k)];
       if (moment >= -spec_.unlock_threshold && other >= -spec_.unlock_threshold) {
@@ -686,17 +682,9 @@ void Ladder::meet_stop(int k) {
   const int c = hinges_[k].corner;
   const double before = blocks_kinetic();
   world_.combine(particle(k - 1, c), particle(k, c));
-  // Met again at the instant it was let go (an impact or an unlock): its moment pulled, yet the free motion from that
-  // very state turned the pair straight back into the stop (the loads change sign there), so the contact holds. The
-  // world is at the state of that release, so this meeting removes nothing; the release is taken back if its event
-  // is still to be taken. (Without this, a pair whose moment pulls by a hair could meet its stop again and again.)
-  if (released_at_[static_cast<size_t>(k)] == world_.time()) {
-    hinges_[k].status = HingeStatus::Locked;
-    if (!take_back_release(k))
-      emit(EventKind::Lock, k, before - blocks_kinetic(), "pressed: let go at this instant, the free motion turned "
-                                                          "the pair straight back into the stop");
+  if (held_again(k, before, "pressed: let go at this instant, the free motion turned the pair straight back into "
+                            "the stop"))
     return;
-  }
   contact_moments(moments_, k);
   const double moment = moments_[static_cast<size_t>(k)];
   if (moment >= -spec_.unlock_threshold) {
@@ -710,6 +698,19 @@ void Ladder::meet_stop(int k) {
 }
 
 void Ladder::released(int k) { released_at_[static_cast<size_t>(k)] = world_.time(); }
+
+// Met again at the instant it was let go (an impact or an unlock): its moment pulled, yet the free motion from that
+// very state closed the pair straight back (the loads change sign there), so the contact holds: hinge k (welded by
+// the caller) is locked and true is returned. The world is at the state of that release, so this meeting removes
+// nothing; the release is taken back if its event is still to be taken, else a lock with `detail` is reported.
+// (Without this, a pair whose moment pulls by a hair could meet its stop again and again.) False if hinge k was not
+// let go at this instant.
+bool Ladder::held_again(int k, double before, const char* detail) {
+  if (released_at_[static_cast<size_t>(k)] != world_.time()) return false;
+  hinges_[k].status = HingeStatus::Locked;
+  if (!take_back_release(k)) emit(EventKind::Lock, k, before - blocks_kinetic(), detail);
+  return true;
+}
 
 // Takes back hinge k's release at this instant, if its event is still to be taken: an impact becomes the lock it
 // turned out to be (one event, with the meeting's energy), an unlock is dropped (the lock goes on). False if there is

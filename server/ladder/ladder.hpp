@@ -199,6 +199,7 @@ class Ladder {
   void restructure(int k);
   void meet_stop(int k);
   void released(int k);
+  bool held_again(int k, double before, const char* detail);
   bool take_back_release(int k);
   void contact_moments(std::vector<double>& moments, int meeting = -1);
   double contact_moment(const core::World& world, int k, bool other_end = false) const;
