@@ -24,6 +24,7 @@
 #include "core/hot_inline.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -120,6 +121,14 @@ constexpr double kEpsilon = 0x1p-52;
 constexpr double kMaxTurnChange = 0.1;
 constexpr double kMaxT = 1;
 constexpr double kJacFloor = 0.05;  // the floor of a body's turn stiffness (finish_body)
+// A solve still short after solver.max_iterations is rescued (step_midpoint, rescue_guess below): within kNearGap of
+// closing the hinges, by kExactIterations more iterations of the exact Newton; farther, by Newton again from the
+// solution of shorter steps from the same start (a homotopy in the step's length: kRescueFirst, then kRescueSecond,
+// as shares of h).
+constexpr double kNearGap = 1e-6;
+constexpr int kExactIterations = 10;
+constexpr std::array<double, 2> kRescueFirst = {0.5, 0.8};
+constexpr std::array<double, 5> kRescueSecond = {0.25, 0.5, 0.7, 0.85, 0.95};
 // A Newton correction so small that what it leaves is known without measuring it (newton_remainder below): the step
 // ends there when the remainder's bound is below this share of the tolerances.
 constexpr double kRemainderShare = 1e-2;
@@ -212,6 +221,7 @@ void World::step_midpoint(double h) {
   m.lam.resize(n);
   if (hinge_force_.size() != n) hinge_force_.assign(n, Vec2::Zero());
   for (size_t k = 0; k < n; ++k) m.lam[k] = h * hinge_force_[k];
+  if (rescuing_ && seed_scale_ > 0) apply_seed();  // a rescue's later stage (rescue_guess)
   m.mid_a.resize(n);
   m.mid_b.resize(n);
   m.end_a.resize(n);
@@ -243,12 +253,17 @@ void World::step_midpoint(double h) {
   }
   m.stiff_coef.resize(nb);
   m.lift.resize(nb);
-  if (has_rolling_) {
+  // The exact Newton (3x3 blocks, every turn an unknown): always with rolling rows, and otherwise as a rescue's end
+  // game (below).
+  bool three = false;
+  const auto make_exact = [&] {
+    three = true;
     m.roll.resize(n);
     m.jac.resize(nb);
     m.couple_ab.resize(n);
     m.couple_ba.resize(n);
-  }
+  };
+  if (has_rolling_) make_exact();
   // What this iteration's Newton step was (newton_remainder): its Jacobian exact (no turn stiffness floored, no
   // correction limited) and, when it is tracked, its largest turn correction and the largest product of a body's
   // turn correction and its rows' impulse corrections (their 1-norms).
@@ -341,7 +356,7 @@ void World::step_midpoint(double h) {
       if (!(jac >= kJacFloor)) exact = false;
       const double inv_jac = 1 / std::max(jac, kJacFloor);
       m.inv_jac[i] = inv_jac;
-      if (has_rolling_) {  // the exact Newton's terms (rolling_newton above)
+      if (three) {  // the exact Newton's terms (rolling_newton above)
         m.jac[i] = jac;
         if (prev >= 0) m.couple_ba[prev] = -c * (couple_prev + 2 * cf);
         if (next >= 0) m.couple_ab[next] = -c * (couple_next + 2 * cf);
@@ -381,6 +396,8 @@ void World::step_midpoint(double h) {
   };
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
   double last_rho = kInfinity, final_gap = 0;
+  int limit = options_.max_iterations;  // this solve's last iteration (a rescue extends it)
+  int homotopies = 0;                   // the rescues from shorter steps tried (kRescueFirst, kRescueSecond)
   bool expect_converged = m.guess_was_right;
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   for (int iteration = 0;; ++iteration) {
@@ -501,7 +518,7 @@ void World::step_midpoint(double h) {
     if (!checked) {
       for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho, std::true_type{});
       if (n > 0)
-        st.regularised_pivots += has_rolling_ ? m.newton3.factor_forward(static_cast<int>(n), row3, m.dx)
+        st.regularised_pivots += three ? m.newton3.factor_forward(static_cast<int>(n), row3, m.dx)
                                               : newton_.factor_forward(static_cast<int>(n), row, m.dlam);
     }
     const double worst_gap = std::sqrt(worst_gap2);
@@ -514,13 +531,35 @@ void World::step_midpoint(double h) {
       final_gap = worst_gap;
       break;
     }
-    if (iteration >= options_.max_iterations || !std::isfinite(worst_gap) || !std::isfinite(worst_rho)) break;
+    if (!std::isfinite(worst_gap) || !std::isfinite(worst_rho)) break;
+    if (iteration >= limit) {
+      // Rescue (docs/model.md section 3.1). Near: the exact Newton from this iterate (a body whose turn stiffness is
+      // floored converges only linearly). Far: Newton cycled; it starts again from the solution of a shorter step.
+      if (worst_gap <= kNearGap) {
+        if (three) break;  // (the exact Newton already: rounding, or a tolerance out of reach, stops it)
+        make_exact();
+        limit = iteration + kExactIterations;
+      } else if (!rescuing_ && homotopies < 2) {
+        if (homotopies++ == 0)
+          rescue_guess(h, kRescueFirst.data(), kRescueFirst.size());
+        else
+          rescue_guess(h, kRescueSecond.data(), kRescueSecond.size());
+        if (!has_rolling_) three = false;
+        limit = iteration + options_.max_iterations + 1;
+      } else {
+        break;
+      }
+      ++st.rescues;
+      last_rho = kInfinity;
+      expect_converged = false;
+      continue;  // (this iterate's terms are found again, with the exact Newton's or at the new guess)
+    }
     expect_converged = worst_gap < kNearlyThere * tol && worst_rho < kNearlyThere * tol;
     // Back-substitution: each row's correction, and each body's as soon as its rows' are known. When the iterate was
     // close (as expect_converged), the corrections' sizes are tracked for newton_remainder.
     const auto update = [&](auto track) HOT_INLINE {
       constexpr bool kTrack = decltype(track)::value;
-      if (n > 0 && has_rolling_) {
+      if (n > 0 && three) {
         m.newton3.backward(m.dx, [&](int k) HOT_INLINE {
           const Row& r = rows_[static_cast<size_t>(k)];
           const Vec3& x = m.dx[k];
@@ -547,7 +586,7 @@ void World::step_midpoint(double h) {
       }
       for (const int b : loose_bodies_) correct_body(b, -1, -1, track);
     };
-    const bool track = expect_converged && exact && !forced && (cf == 0 || has_rolling_);
+    const bool track = expect_converged && exact && !forced && (cf == 0 || three);
     if (track)
       update(std::true_type{});
     else
@@ -677,6 +716,92 @@ void World::step_midpoint(double h) {
     residual_version_ = state_version_;
   }
   if (options_.stabilization == Stabilization::Velocity) project_velocities();
+}
+
+// The rescue's first guess for a midpoint step of length h whose Newton's method cycled: a homotopy in the step's
+// length. The steps of lengths s_1 h < s_2 h < ... from the same start are solved in turn, each from the last one's
+// turns and impulses scaled to its length (the turn angle and the impulse in proportion; the first from the usual
+// guess), and the last one's, scaled to h, replace the iterate. A shorter step's equations are nearer the start's
+// guess, and each stage starts near its solution. The world is left as it was, but for the iterate and the step's
+// statistics (the shorter steps' iterations count). Of the step's work only what its start computed is kept aside
+// (the per-iterate terms are found again): with the start state's copy and the seed, about 200 bytes a block.
+void World::rescue_guess(double h, const double* scales, size_t count) {
+  MidpointWork& m = mid_;
+  MidpointWork kept;  // the step's constants and its drive's turns, swapped out while the shorter steps run
+  const auto keep = [&] {
+    kept.t.swap(m.t);
+    kept.kt.swap(m.kt);
+    kept.alpha.swap(m.alpha);
+    kept.beta.swap(m.beta);
+    kept.spin_gain.swap(m.spin_gain);
+    kept.damp.swap(m.damp);
+    kept.vfree.swap(m.vfree);
+    kept.kinematic_start.swap(m.kinematic_start);
+    kept.kinematic_anchor.swap(m.kinematic_anchor);
+    kept.force_lever.swap(m.force_lever);
+    kept.roll_u0.swap(m.roll_u0);
+    std::swap(kept.roll_u0_version, m.roll_u0_version);
+    std::swap(kept.roll_u0_structure, m.roll_u0_structure);
+    std::swap(kept.guess_was_right, m.guess_was_right);
+  };
+  keep();
+  const std::vector<BodyState> state = state_;
+  const std::vector<Vec2> forces = hinge_force_, ua0 = ua0_, ub0 = ub0_;
+  const double t = t_;
+  const StepStats stats = stats_;
+  StepStats shorter;  // the shorter steps' solves
+  double last = 0;    // the last stage's share of h
+  rescuing_ = true;
+  try {
+    for (size_t i = 0; i < count; ++i) {
+      state_ = state;
+      for (size_t j = 0; j < kinematic_bodies_.size(); ++j)  // driven to the end of h: back to the start
+        state_[static_cast<size_t>(kinematic_bodies_[j])] = kept.kinematic_start[j];
+      hinge_force_ = forces;
+      t_ = t;
+      mark_state_changed();
+      stats_ = {};
+      seed_scale_ = last > 0 ? scales[i] / last : 0;  // step_midpoint starts from seed_ scaled by this
+      step_midpoint(scales[i] * h);
+      shorter.iterations += stats_.iterations;
+      shorter.rescues += stats_.rescues;
+      shorter.regularised_pivots += stats_.regularised_pivots;
+      seed_.lam.swap(m.lam);
+      seed_.t.swap(m.t);
+      last = scales[i];
+    }
+  } catch (...) {
+    rescuing_ = false;
+    throw;
+  }
+  rescuing_ = false;
+  keep();  // (back)
+  state_ = state;
+  hinge_force_ = forces;
+  ua0_ = ua0;
+  ub0_ = ub0;
+  t_ = t;
+  stats_ = stats;
+  stats_.iterations += shorter.iterations;
+  stats_.rescues += shorter.rescues;
+  stats_.regularised_pivots += shorter.regularised_pivots;
+  mark_state_changed();
+  seed_scale_ = 1 / last;
+  apply_seed();
+  seed_scale_ = 0;
+}
+
+// The iterate from the last rescue stage's solution (seed_), its turns and impulses scaled by seed_scale_.
+void World::apply_seed() {
+  MidpointWork& m = mid_;
+  const double s = seed_scale_;
+  m.lam.resize(seed_.lam.size());
+  for (size_t k = 0; k < m.lam.size(); ++k) m.lam[k] = seed_.lam[k] * s;
+  for (size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_[b].kinematic) continue;
+    m.t[b] = std::tan(std::atan(seed_.t[b]) * s);
+    m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);
+  }
 }
 
 }  // namespace ladder::core

@@ -160,6 +160,9 @@ struct StepStats {
   // Midpoint steps that ended on the bound of Newton's remainder instead of a pass measuring the last iterate; their
   // residual is the end state's largest hinge gap (docs/model.md section 3.1).
   int bound_ends = 0;
+  // Midpoint solves still short after solver.max_iterations and rescued: by the exact Newton near the solution, or
+  // from a shorter step's solution (docs/model.md section 3.1).
+  int rescues = 0;
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
   // residual, converged only if both were.
@@ -172,6 +175,7 @@ struct StepStats {
     work += s.work;
     dissipated += s.dissipated;
     bound_ends += s.bound_ends;
+    rescues += s.rescues;
   }
 };
 
@@ -460,6 +464,14 @@ class World {
   void step_projection(double h);
   void step_reduced(double h);
   void step_midpoint(double h);  // midpoint.cpp
+  void rescue_guess(double h, const double* scales, size_t count);  // midpoint.cpp
+  void apply_seed();                                                 // midpoint.cpp
+  bool rescuing_ = false;  // in rescue_guess's shorter steps
+  struct {
+    std::vector<Vec2> lam;
+    std::vector<double> t;
+  } seed_;                   // the last rescue stage's impulses and turns
+  double seed_scale_ = 0;   // what the next stage scales them by (0: the step's own first guess)
   bool reduced_applies();
   double factor_current_forward();
   void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;

@@ -142,6 +142,7 @@ int run_offline(const OfflineOptions& o) {
                {"total_wall_seconds", wall},
                {"block_steps_per_second", rate},
                {"max_hinge_error_m", max_error},
+               {"rescued_solves", sim->ladder().rescued_solves()},
                {"energy_initial_J", energy_initial},
                {"energy_final_J", sim->ladder().energy()},
                {"events", counts}};
@@ -159,6 +160,8 @@ int run_offline(const OfflineOptions& o) {
   spdlog::info("done: {} steps in {:.3f} s ({:.3g} block-steps/s), max hinge error {:.3g} m", sim->steps(),
                stepping, rate, max_error);
   for (const auto& [kind, n] : counts) spdlog::info("  {:>16}: {}", kind, n);
+  if (sim->ladder().rescued_solves() > 0)  // docs/model.md section 3.1
+    spdlog::info("solves rescued after solver.max_iterations: {}", sim->ladder().rescued_solves());
   spdlog::info("energy lost: {:.3g} J (flip-flop landings {:.3g}, impacts {:.3g}, locks {:.3g}, damping and integrator "
                "{:.3g}){}",
                lost.total(), removed(EventKind::FlipFlop), removed(EventKind::Impact), removed(EventKind::Lock),

@@ -426,6 +426,7 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
     world_.step(h, !locating_, &before);  // the world before the step, for the watchdog to take the step back
     start = &before;
   }
+  rescued_solves_ += world_.last_step().rescues;
   const std::string why = diverged(e0, h);
   if (!why.empty()) {
     world_.restore(*start);

@@ -180,6 +180,9 @@ class Ladder {
   const Losses& losses() const { return losses_; }
   double lost_by_last_flip() const { return lost_by_last_flip_; }
   int flip_flops() const { return flip_flops_; }
+  // Solves the world rescued after their iteration limit (core::StepStats::rescues), over every step taken, the
+  // watchdog's halves and event location's trials included.
+  long rescued_solves() const { return rescued_solves_; }
   std::vector<Event> take_events();
   const core::World& world() const { return world_; }
   core::World& world() { return world_; }
@@ -226,6 +229,7 @@ class Ladder {
   std::vector<Event> events_;
   bool warned_ = false;   // a short-of-tolerance solve has been reported and not yet recovered from
   bool halving_ = false;  // steps are being redone in halves (reported once per episode)
+  long rescued_solves_ = 0;
   bool locating_ = false;  // in locate(): its trial steps are single steps (see advance())
   // The watchdog redoes a failed step in halves, at most this deep (1/64 of the step), then gives up.
   static constexpr int kMaxHalvings = 6;

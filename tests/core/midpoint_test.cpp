@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -376,6 +377,49 @@ TEST(Midpoint, ARestingChainEndsOnTheRemainderBound) {
   EXPECT_GE(run(100), 90);
   world.apply_impulse(parts[100], world.part_position(parts[100]), Vec2(0.5, 0));
   EXPECT_LT(run(100), 100);
+}
+
+// A solve still short at solver.max_iterations is rescued, not left short for the watchdog to redo in halves
+// (docs/model.md section 3.1): near the solution by the exact Newton, farther from the solution of shorter steps
+// from the same start. With the limit at 1 and 2 iterations, a swinging chain of 30 rods at 1 ms (started 0.4 rad
+// from hanging with a kink at its middle, its bottom rod struck sideways) needs a rescue at almost every step, and
+// with the limit at 1 a few are far (one Newton iteration from the first guess leaves a gap above 1e-6 m); each step
+// must end converged, and the trajectory must be the one the default limit gives: both solve the same equations to
+// the 1e-12 m tolerance, so after 300 steps the rods' centres agree to 1e-9 m. Checked to fail when the rescue does
+// not restore the world its shorter steps advanced (inf), scales their solution wrongly (2.5e-5 m), or has no exact
+// Newton near the solution (6e-7 m and steps left short).
+TEST(Midpoint, ASolveCutShortByItsIterationLimitIsRescued) {
+  const auto swing = [](int max_iterations, int& rescues, int& short_steps) {
+    Options o = midpoint();
+    o.max_iterations = max_iterations;
+    auto world = std::make_unique<World>(o);
+    std::vector<double> angle(30, 0.4);
+    for (int i = 15; i < 30; ++i) angle[static_cast<size_t>(i)] = -0.3;
+    const auto parts = hanging_rods(*world, angle);
+    world->apply_impulse(parts[29], world->part_position(parts[29]), Vec2(0.3, 0));  // the bottom rod at 15 m/s
+    rescues = short_steps = 0;
+    for (int i = 0; i < 300; ++i) {
+      world->step(1e-3);
+      rescues += world->last_step().rescues;
+      short_steps += world->last_step().converged ? 0 : 1;
+      EXPECT_LT(world->max_hinge_error(), 1e-11) << "step " << i;
+    }
+    return world;
+  };
+  int rescues = 0, short_steps = 0;
+  const auto reference = swing(30, rescues, short_steps);
+  EXPECT_EQ(rescues, 0);
+  EXPECT_EQ(short_steps, 0);
+  for (const int limit : {1, 2}) {
+    const auto world = swing(limit, rescues, short_steps);
+    EXPECT_GT(rescues, 100) << "limit " << limit;
+    EXPECT_EQ(short_steps, 0) << "limit " << limit;
+    double worst = 0;
+    for (int p = 0; p < 30; ++p)
+      worst = std::max(worst, (world->part_position(p) - reference->part_position(p)).norm());
+    EXPECT_LT(worst, 1e-9) << "limit " << limit;
+    std::printf("limit %d: %d rescues, largest difference from the reference %.3g m\n", limit, rescues, worst);
+  }
 }
 
 }  // namespace
