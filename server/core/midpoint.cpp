@@ -124,9 +124,12 @@ constexpr double kJacFloor = 0.05;  // the floor of a body's turn stiffness (fin
 // A solve still short after solver.max_iterations is rescued (step_midpoint, rescue_guess below): within kNearGap of
 // closing the hinges, by kExactIterations more iterations of the exact Newton; farther, by Newton again from the
 // solution of shorter steps from the same start (a homotopy in the step's length: kRescueFirst, then kRescueSecond,
-// as shares of h).
+// as shares of h), and last by kLongIterations more from where that left it. (Measured at a step of the whipping
+// 10 000-block chain whose Newton cycled for 30 iterations: with 200 allowed, the steps of 0.990 to 1.015 ms from the
+// same start every 0.001 ms all converged, in 10 to 150 iterations.)
 constexpr double kNearGap = 1e-6;
 constexpr int kExactIterations = 10;
+constexpr int kLongIterations = 200;
 constexpr std::array<double, 2> kRescueFirst = {0.5, 0.8};
 constexpr std::array<double, 5> kRescueSecond = {0.25, 0.5, 0.7, 0.85, 0.95};
 // A Newton correction so small that what it leaves is known without measuring it (newton_remainder below): the step
@@ -397,7 +400,7 @@ void World::step_midpoint(double h) {
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
   double last_rho = kInfinity, final_gap = 0;
   int limit = options_.max_iterations;  // this solve's last iteration (a rescue extends it)
-  int homotopies = 0;                   // the rescues from shorter steps tried (kRescueFirst, kRescueSecond)
+  int far_rescues = 0;  // the far rescues tried: from shorter steps (kRescueFirst, then kRescueSecond), then long
   bool expect_converged = m.guess_was_right;
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   for (int iteration = 0;; ++iteration) {
@@ -539,13 +542,16 @@ void World::step_midpoint(double h) {
         if (three) break;  // (the exact Newton already: rounding, or a tolerance out of reach, stops it)
         make_exact();
         limit = iteration + kExactIterations;
-      } else if (!rescuing_ && homotopies < 2) {
-        if (homotopies++ == 0)
+      } else if (!rescuing_ && far_rescues < 2) {
+        if (far_rescues++ == 0)
           rescue_guess(h, kRescueFirst.data(), kRescueFirst.size());
         else
           rescue_guess(h, kRescueSecond.data(), kRescueSecond.size());
         if (!has_rolling_) three = false;
         limit = iteration + options_.max_iterations + 1;
+      } else if (!rescuing_ && far_rescues == 2) {  // Newton wanders out of its cycle in the end (kLongIterations)
+        ++far_rescues;
+        limit = iteration + kLongIterations;
       } else {
         break;
       }
