@@ -120,7 +120,7 @@ constexpr std::array kKeys{
     KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = {0, 1e-6, true, false},
            .help = "hinge position error the solver drives below [m]"},
     KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
-           .help = "iterations per nonlinear solve"},
+           .help = "iterations per nonlinear solve (a midpoint solve still short is rescued: docs/model.md 3.1)"},
     // The drags are explicit forces: at 1 ms a block stops within a step already at 1000 /s (3e5 fails the step),
     // and hinge friction above 0.4 N m s fails it for the shipped 25 g blocks.
     KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = between(0, 1000),
