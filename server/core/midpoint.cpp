@@ -224,7 +224,7 @@ void World::step_midpoint(double h) {
   m.lam.resize(n);
   if (hinge_force_.size() != n) hinge_force_.assign(n, Vec2::Zero());
   for (size_t k = 0; k < n; ++k) m.lam[k] = h * hinge_force_[k];
-  if (rescuing_ && seed_scale_ > 0) apply_seed();  // a rescue's later stage (rescue_guess)
+  if (rescuing_ && seed_scale_ > 0) apply_seed(seed_scale_);  // a rescue's later stage (rescue_guess)
   m.mid_a.resize(n);
   m.mid_b.resize(n);
   m.end_a.resize(n);
@@ -547,7 +547,7 @@ void World::step_midpoint(double h) {
           rescue_guess(h, kRescueFirst.data(), kRescueFirst.size());
         else
           rescue_guess(h, kRescueSecond.data(), kRescueSecond.size());
-        if (!has_rolling_) three = false;
+        if (!has_rolling_) three = false;  // (from far the floored Newton fares better than the exact one)
         limit = iteration + options_.max_iterations + 1;
       } else if (!rescuing_ && far_rescues == 2) {  // Newton wanders out of its cycle in the end (kLongIterations)
         ++far_rescues;
@@ -754,9 +754,8 @@ void World::rescue_guess(double h, const double* scales, size_t count) {
   const std::vector<BodyState> state = state_;
   const std::vector<Vec2> forces = hinge_force_, ua0 = ua0_, ub0 = ub0_;
   const double t = t_;
-  const StepStats stats = stats_;
-  StepStats shorter;  // the shorter steps' solves
-  double last = 0;    // the last stage's share of h
+  StepStats stats = stats_;  // this step's, with the shorter steps' solves counted in
+  double last = 0;           // the last stage's share of h
   rescuing_ = true;
   try {
     for (size_t i = 0; i < count; ++i) {
@@ -769,9 +768,9 @@ void World::rescue_guess(double h, const double* scales, size_t count) {
       stats_ = {};
       seed_scale_ = last > 0 ? scales[i] / last : 0;  // step_midpoint starts from seed_ scaled by this
       step_midpoint(scales[i] * h);
-      shorter.iterations += stats_.iterations;
-      shorter.rescues += stats_.rescues;
-      shorter.regularised_pivots += stats_.regularised_pivots;
+      stats.iterations += stats_.iterations;
+      stats.rescues += stats_.rescues;
+      stats.regularised_pivots += stats_.regularised_pivots;
       seed_.lam.swap(m.lam);
       seed_.t.swap(m.t);
       last = scales[i];
@@ -788,19 +787,14 @@ void World::rescue_guess(double h, const double* scales, size_t count) {
   ub0_ = ub0;
   t_ = t;
   stats_ = stats;
-  stats_.iterations += shorter.iterations;
-  stats_.rescues += shorter.rescues;
-  stats_.regularised_pivots += shorter.regularised_pivots;
   mark_state_changed();
-  seed_scale_ = 1 / last;
-  apply_seed();
   seed_scale_ = 0;
+  apply_seed(1 / last);
 }
 
-// The iterate from the last rescue stage's solution (seed_), its turns and impulses scaled by seed_scale_.
-void World::apply_seed() {
+// The iterate from the last rescue stage's solution (seed_), its turns and impulses scaled by s.
+void World::apply_seed(double s) {
   MidpointWork& m = mid_;
-  const double s = seed_scale_;
   m.lam.resize(seed_.lam.size());
   for (size_t k = 0; k < m.lam.size(); ++k) m.lam[k] = seed_.lam[k] * s;
   for (size_t b = 0; b < bodies_.size(); ++b) {

@@ -465,13 +465,13 @@ class World {
   void step_reduced(double h);
   void step_midpoint(double h);  // midpoint.cpp
   void rescue_guess(double h, const double* scales, size_t count);  // midpoint.cpp
-  void apply_seed();                                                 // midpoint.cpp
+  void apply_seed(double s);                                         // midpoint.cpp
   bool rescuing_ = false;  // in rescue_guess's shorter steps
   struct {
     std::vector<Vec2> lam;
     std::vector<double> t;
   } seed_;                   // the last rescue stage's impulses and turns
-  double seed_scale_ = 0;   // what the next stage scales them by (0: the step's own first guess)
+  double seed_scale_ = 0;   // what the next stage scales them by (0: its own first guess)
   bool reduced_applies();
   double factor_current_forward();
   void symmetric_row(int k, std::vector<Vec2>& ua, std::vector<Vec2>& ub, double* d, Mat2& u_prev) const;
