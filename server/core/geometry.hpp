@@ -35,6 +35,38 @@ struct Rot {
   Vec2 apply_inverse(const Vec2& v) const { return {c * v.x() + s * v.y(), -s * v.x() + c * v.y()}; }
 };
 
+// (cos a, sin a) for any angle, without libm: the direction of a rolling hinge's contact, found from its two bodies'
+// unwrapped angles once per hinge and step. libm's sincos was 6 % of a rolling ladder's step (more than the rest of
+// the contact's terms), and which of its builds runs depends on the processor (glibc picks an FMA one where it can),
+// so its last bit could differ between two machines replaying one log; these are the same operations everywhere.
+// The angle is reduced by the nearest multiple k of pi / 2 (pi / 2 split into two 33-bit parts and a rest, so that
+// k times the parts is exact for |k| < 2^20) to |r| <= pi / 4, where the Taylor series below are exact to rounding
+// (the first omitted terms, r^19 / 19! and r^18 / 18!, are below 1e-17); then the quadrant k mod 4 swaps and negates.
+// Within 3 ulps of the true values and 2.5e-16 absolute (tests/core/world_test.cpp); beyond |a| = 1e6 rad, libm.
+inline Vec2 unit_at(double a) {
+  if (!(std::abs(a) <= 1e6)) return {std::cos(a), std::sin(a)};
+  constexpr double kTwoOverPi = 0.63661977236758134308, kRound = 0x1.8p52;  // x + kRound - kRound rounds x
+  constexpr double kPio2a = 1.5707963267341256, kPio2b = 6.077100506303966e-11, kPio2c = 2.0222662487959506e-21;
+  const double k = (a * kTwoOverPi + kRound) - kRound;
+  const double r = ((a - k * kPio2a) - k * kPio2b) - k * kPio2c;
+  // The series in z = r^2 by Estrin's scheme (pairs, then pairs of pairs) rather than Horner's: a quarter of the
+  // chain of dependent operations, so that the rows of a pass overlap instead of waiting on each other.
+  const double z = r * r, z2 = z * z, z4 = z2 * z2;
+  const double ps = ((-1.0 / 6 + z * (1.0 / 120)) + z2 * (-1.0 / 5040 + z * (1.0 / 362880))) +
+                    z4 * ((-1.0 / 39916800 + z * (1.0 / 6227020800)) +
+                          z2 * (-1.0 / 1307674368000 + z * (1.0 / 355687428096000)));
+  const double pc = ((-1.0 / 2 + z * (1.0 / 24)) + z2 * (-1.0 / 720 + z * (1.0 / 40320))) +
+                    z4 * ((-1.0 / 3628800 + z * (1.0 / 479001600)) +
+                          z2 * (-1.0 / 87178291200 + z * (1.0 / 20922789888000)));
+  const double s = r + (r * z) * ps, c = 1 + z * pc;
+  switch (static_cast<long long>(k) & 3) {
+    case 0: return {c, s};
+    case 1: return {-s, c};
+    case 2: return {-c, -s};
+    default: return {s, -c};
+  }
+}
+
 // cos and sin of a small increment. The step turns each body by at most a few hundredths of a radian, where
 // truncated Taylor series are exact to the last bit and much cheaper than libm; larger angles use libm.
 inline Rot rotation_of_small_angle(double a) {

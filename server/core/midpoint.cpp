@@ -158,7 +158,7 @@ void World::step_midpoint(double h) {
                         m.roll_u0.size() == n)) {
     m.roll_u0.resize(n);
     for (size_t k = 0; k < n; ++k)
-      if (rows_[k].rolls) m.roll_u0[k] = roll_offset(k) / roll_[k].radius;
+      if (rows_[k].rolls) m.roll_u0[k] = roll_direction(k);
   }
   m.kinematic_start.clear();
   for (const int b : kinematic_bodies_) m.kinematic_start.push_back(state_[static_cast<size_t>(b)]);
@@ -181,7 +181,7 @@ void World::step_midpoint(double h) {
   m.beta.resize(nb);
   m.vbar.resize(nb);
   m.vfree.resize(nb);
-  const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl);
+  const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl), inv_h = 1 / h;
   double spin_gyration = 0;  // the largest h / (4 I) times the radius of gyration (newton_remainder)
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
@@ -261,7 +261,6 @@ void World::step_midpoint(double h) {
   bool three = false;
   const auto make_exact = [&] {
     three = true;
-    m.roll.resize(n);
     m.jac.resize(nb);
     m.couple_ab.resize(n);
     m.couple_ba.resize(n);
@@ -303,7 +302,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ub0_[prev], ti, k);
       stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
-        const Rolling& c = m.roll[prev];  // rolling_once (below): computed for body a in this pass
+        const Rolling& c = m.roll[prev & 1];  // rolling_once (below): computed for body a in this pass
         v.mid -= c.mid;
         v.end -= c.end;
         if constexpr (kNewton) {
@@ -325,7 +324,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ua0_[next], ti, k);
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
-        const Rolling& c = m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti,
+        const Rolling& c = m.roll[next & 1] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti,
                                                                 m.t[rows_[next].b], k, m.kt[rows_[next].b]);
         v.mid += c.mid;
         v.end += c.end;
@@ -431,13 +430,13 @@ void World::step_midpoint(double h) {
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       if (ak) {  // (a driven side's levers enter no angular equation: only its end point counts)
         if (r.rolls)
-          m.roll[k] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
-        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k];
+          m.roll[k & 1] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
+        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k & 1].end) : ua0_[k];
       } else if (!r.link_prev) {
         finish_body(r.a, -1, k, worst_rho, newton);
       }
       if (bk) {
-        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k];
+        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k & 1].end) : ub0_[k];
       } else {
         finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho, newton);
       }
@@ -642,12 +641,12 @@ void World::step_midpoint(double h) {
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
     if (body.kinematic) continue;
-    const double wbar = 2 * m.t[b] / h;
+    const double wbar = 2 * m.t[b] * inv_h;
     dissipated += h * (cl * body.mass * (state_[b].v + m.vbar[b]).squaredNorm() + m.beta[b] * wbar * wbar);
   }
   if (cf != 0)
     for (const Row& r : rows_) {
-      const double wa = 2 * m.t[r.a] / h, wb = 2 * m.t[r.b] / h;
+      const double wa = 2 * m.t[r.a] * inv_h, wb = 2 * m.t[r.b] * inv_h;
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       if (ak && bk) continue;
       dissipated += h * cf * (wb - wa) * (wb - wa);
@@ -678,7 +677,7 @@ void World::step_midpoint(double h) {
     for (size_t k = 0; k < n; ++k) row_impulse_[k] = m.lam[k];
   st.work = work;
   st.dissipated = dissipated;
-  for (size_t k = 0; k < n; ++k) hinge_force_[k] = m.lam[k] / h;
+  for (size_t k = 0; k < n; ++k) hinge_force_[k] = m.lam[k] * inv_h;
 
   // The end of the step.
   for (size_t b = 0; b < nb; ++b) {
@@ -687,7 +686,7 @@ void World::step_midpoint(double h) {
     const double t = m.t[b];
     s.x += h * (s.v + m.vbar[b]);
     s.v += 2 * m.vbar[b];
-    s.w = 4 * t / h - s.w;
+    s.w = 4 * t * inv_h - s.w;
     s.q = (s.q * cayley(t)).renormalised();
     s.th += turn_of(t);
   }
@@ -702,9 +701,9 @@ void World::step_midpoint(double h) {
       const Vec2 pa = a.x + a.q * r.ra, pb = b.x + b.q * r.rb;
       Vec2 gap = pa - pb;
       if (r.rolls) {  // and its contact's direction, the next step's start (the same bits as computed there)
-        const Vec2 offset = roll_offset(k, a, b);
-        gap += 2 * offset;
-        m.roll_u0[k] = offset / roll_[k].radius;
+        const Vec2 u = roll_direction(k, a, b);
+        gap += (2 * roll_[k].radius) * u;
+        m.roll_u0[k] = u;
       }
       count_gap(gap, pa, pb, worst2, largest2);
     }

@@ -93,7 +93,7 @@ Vec2 World::joint_gap(const Joint& j) const {
   const Vec2 gap = particle_position(j.pa) - particle_position(j.pb);
   if (!(j.radius > 0)) return gap;
   const double psi = 0.5 * (part_angle(particles_[j.pa].part) + part_angle(particles_[j.pb].part)) + j.psi0;
-  return gap + 2 * j.radius * Vec2(std::cos(psi), std::sin(psi));
+  return gap + 2 * j.radius * unit_at(psi);
 }
 
 double World::max_hinge_error() const {
@@ -202,7 +202,7 @@ double World::weld_moment(int pa, int pb, int about_a, int about_b) const {
     const Part& pap = parts_[part_a];
     const double th = 0.5 * (s0.th + s1.th);
     const double psi = th + 0.5 * (pap.rel_th + pbp.rel_th) + jt.psi0;
-    const Vec2 u(std::cos(psi), std::sin(psi));
+    const Vec2 u = unit_at(psi);
     weld_point += (jt.pa == pb ? 1.0 : -1.0) * jt.radius * u;
   }
   const Vec2 j_weld = m * (v1 - v0) - h * f_ext - j_rows;

@@ -23,6 +23,7 @@
 #include "core/geometry.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -370,10 +371,13 @@ class World {
   // q_a ra + r u and q_b rb - r u, and its gap (x_a + q_a ra) - (x_b + q_b rb) + 2 r u. The Jacobian of that gap is
   // a plain hinge's at the contact point (docs/model.md section 9), so every solve works with these levers as they
   // are. The angles are the unwrapped ones: the contact direction turns continuously through any number of turns.
+  // roll_direction: u alone (unit_at, geometry.hpp).
+  Vec2 roll_direction(size_t k, const BodyState& a, const BodyState& b) const {
+    return unit_at(0.5 * (a.th + b.th) + roll_[k].psi0);
+  }
+  Vec2 roll_direction(size_t k) const { return roll_direction(k, state_[rows_[k].a], state_[rows_[k].b]); }
   Vec2 roll_offset(size_t k, const BodyState& a, const BodyState& b) const {
-    const Roll& rl = roll_[k];
-    const double psi = 0.5 * (a.th + b.th) + rl.psi0;
-    return rl.radius * Vec2(std::cos(psi), std::sin(psi));
+    return roll_[k].radius * roll_direction(k, a, b);
   }
   Vec2 roll_offset(size_t k) const { return roll_offset(k, state_[rows_[k].a], state_[rows_[k].b]); }
   // What a rolling row's gap accelerates by beyond a plain hinge's at its contact point, -w^2 u on each lever:
@@ -576,7 +580,9 @@ class World {
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
     std::vector<double> jac, couple_ab, couple_ba;
-    std::vector<RollingTerms> roll;  // per rolling row, this pass's contact terms (midpoint.cpp, rolling_once)
+    // A rolling row's contact terms in this pass (midpoint.cpp, rolling_once), in slot k & 1: a pass needs row k's
+    // only until row k + 1's are computed.
+    std::array<RollingTerms, 2> roll;
     BlockTridiag3 newton3;
     std::vector<Vec3> dx;
   };
