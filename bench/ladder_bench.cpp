@@ -67,11 +67,13 @@ std::unique_ptr<model::Ladder> ladder(int n, bool logic, bool fast_preset = fals
 void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   const int n = static_cast<int>(state.range(0));
   if (tip) l->tip();
-  double iterations = 0;
+  double iterations = 0, bound_ends = 0;
   for (auto _ : state) {
     l->advance(1e-3);
     iterations += l->world().last_step().iterations;
+    bound_ends += l->world().last_step().bound_ends;
   }
+  state.counters["bound_ends/step"] = bound_ends / static_cast<double>(state.iterations());
   const double block_steps = static_cast<double>(state.iterations()) * n;
   state.counters["iterations/step"] = iterations / static_cast<double>(state.iterations());
   state.counters["block_steps/s"] = benchmark::Counter(block_steps, benchmark::Counter::kIsRate);

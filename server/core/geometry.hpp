@@ -59,12 +59,12 @@ inline Vec2 unit_at(double a) {
                     z4 * ((-1.0 / 3628800 + z * (1.0 / 479001600)) +
                           z2 * (-1.0 / 87178291200 + z * (1.0 / 20922789888000)));
   const double s = r + (r * z) * ps, c = 1 + z * pc;
-  switch (static_cast<long long>(k) & 3) {
-    case 0: return {c, s};
-    case 1: return {-s, c};
-    case 2: return {-c, -s};
-    default: return {s, -c};
-  }
+  // Quadrant q: (c, s), (-s, c), (-c, -s), (s, -c), chosen by indexing rather than by branches (along a tipped
+  // ladder the quadrants of neighbouring hinges follow no pattern a branch predictor learns).
+  const int q = static_cast<int>(static_cast<long long>(k) & 3);
+  constexpr double kSignX[4] = {1, -1, -1, 1}, kSignY[4] = {1, 1, -1, -1};
+  const double cs[2] = {c, s};
+  return {kSignX[q] * cs[q & 1], kSignY[q] * cs[(q & 1) ^ 1]};
 }
 
 // cos and sin of a small increment. The step turns each body by at most a few hundredths of a radian, where

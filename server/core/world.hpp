@@ -23,7 +23,6 @@
 #include "core/geometry.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -580,9 +579,7 @@ class World {
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
     std::vector<double> jac, couple_ab, couple_ba;
-    // A rolling row's contact terms in this pass (midpoint.cpp, rolling_once), in slot k & 1: a pass needs row k's
-    // only until row k + 1's are computed.
-    std::array<RollingTerms, 2> roll;
+    std::vector<RollingTerms> roll;  // per rolling row, this pass's contact terms (midpoint.cpp, rolling_once)
     BlockTridiag3 newton3;
     std::vector<Vec3> dx;
   };
