@@ -567,7 +567,16 @@ void World::step_midpoint(double h) {
     }
     expect_converged = worst_gap < kNearlyThere * tol && worst_rho < kNearlyThere * tol;
     // Back-substitution: each row's correction, and each body's as soon as its rows' are known. When the iterate was
-    // close (as expect_converged), the corrections' sizes are tracked for newton_remainder.
+    // close (as expect_converged), the corrections' sizes are tracked for newton_remainder, and what the step needs
+    // if it ends there is found on the way (final_row): the largest impulse, and the bodies' mean velocities at the
+    // final impulses, as finish_body computes them (the rows run backwards: row k + 1's impulse is final by row k).
+    double lam_max2 = 0;
+    const auto final_row = [&](int k) HOT_INLINE {
+      const Row& r = rows_[static_cast<size_t>(k)];
+      lam_max2 = std::max(lam_max2, m.lam[k].squaredNorm());
+      if (!bodies_[r.b].kinematic) mean_velocity(r.b, k, r.shares_next ? k + 1 : -1);
+      if (!r.link_prev && !bodies_[r.a].kinematic) mean_velocity(r.a, -1, k);
+    };
     const auto update = [&](auto track) HOT_INLINE {
       constexpr bool kTrack = decltype(track)::value;
       if (n > 0 && three) {
@@ -586,6 +595,7 @@ void World::step_midpoint(double h) {
             turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
                           (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a], track, dl);
           if (!bk) turn_by(r.b, x(2), track, dl + dl_next);
+          if constexpr (kTrack) final_row(k);
         });
       } else if (n > 0) {
         newton_.backward(m.dlam, [&](int k) HOT_INLINE {
@@ -593,9 +603,13 @@ void World::step_midpoint(double h) {
           m.lam[k] += m.dlam[k];
           if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1, track);
           if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k, track);
+          if constexpr (kTrack) final_row(k);
         });
       }
-      for (const int b : loose_bodies_) correct_body(b, -1, -1, track);
+      for (const int b : loose_bodies_) {
+        correct_body(b, -1, -1, track);
+        if constexpr (kTrack) mean_velocity(b, -1, -1);
+      }
     };
     const bool track = expect_converged && exact && !forced && (cf == 0 || three);
     if (track)
@@ -620,8 +634,6 @@ void World::step_midpoint(double h) {
       const double gap_bound = 2 * 10.6 * lever * dt_max * dt_max;
       const double rho_limit = kSpinRemainderShare * kRhoShare * tol;
       if (gap_bound <= kRemainderShare * tol && 2 * spin_gyration * lever * 1.5 * cross_max <= rho_limit) {
-        double lam_max2 = 0;  // (only now: a pass over the rows)
-        for (size_t k = 0; k < n; ++k) lam_max2 = std::max(lam_max2, m.lam[k].squaredNorm());
         const double rho_bound =
             2 * spin_gyration * lever * (10.6 * std::sqrt(lam_max2) * dt_max * dt_max + 1.5 * cross_max);
         if (rho_bound <= rho_limit) {
@@ -632,24 +644,34 @@ void World::step_midpoint(double h) {
       }
     }
   }
-  if (predicted) {  // the bodies' mean velocities at the final impulses, as finish_body computes them
-    for (const int b : loose_bodies_) mean_velocity(b, -1, -1);
-    for (size_t k = 0; k < n; ++k) {
-      const Row& r = rows_[k];
-      const int row = static_cast<int>(k);
-      if (!bodies_[r.a].kinematic && !r.link_prev) mean_velocity(r.a, -1, row);
-      if (!bodies_[r.b].kinematic) mean_velocity(r.b, row, r.shares_next ? row + 1 : -1);
-    }
-  }
   m.guess_was_right = st.iterations == 0;
 
-  // Work and dissipation of the step, exactly as the scheme accounts them.
+  // Work and dissipation of the step, exactly as the scheme accounts them, and the end of the step. The sums keep
+  // this order (the bodies' dissipation, then the hinge friction's; the friction's work, the users' forces', the
+  // drives'), but the bodies' dissipation and their end are one pass: a force's work, which needs its body's start
+  // velocity, is found before it.
+  m.force_work.clear();
+  for (size_t i = 0; i < forces_.size(); ++i) {
+    const AppliedForce& af = forces_[i];
+    const int b = parts_[static_cast<size_t>(af.part)].body;
+    if (bodies_[b].kinematic) continue;
+    const Levers v = levers(m.force_lever[i], m.t[b], m.kt[b]);
+    m.force_work.push_back(af.over_step(t0, h).dot(h * (state_[b].v + m.vbar[b]) + (v.end - m.force_lever[i])));
+  }
   double work = 0, dissipated = 0;
   for (size_t b = 0; b < nb; ++b) {
     const Body& body = bodies_[b];
     if (body.kinematic) continue;
-    const double wbar = 2 * m.t[b] * inv_h;
-    dissipated += h * (cl * body.mass * (state_[b].v + m.vbar[b]).squaredNorm() + m.beta[b] * wbar * wbar);
+    BodyState& s = state_[b];
+    const double t = m.t[b];
+    const Vec2& vbar = m.vbar[b];
+    const double wbar = 2 * t * inv_h;
+    dissipated += h * (cl * body.mass * (s.v + vbar).squaredNorm() + m.beta[b] * wbar * wbar);
+    s.x += h * (s.v + vbar);
+    s.v += 2 * vbar;
+    s.w = 4 * t * inv_h - s.w;
+    s.q = (s.q * cayley(t)).renormalised();
+    s.th += turn_of(t);
   }
   if (cf != 0)
     for (const Row& r : rows_) {
@@ -660,14 +682,8 @@ void World::step_midpoint(double h) {
       if (ak) work += h * cf * wa * (wa - wb);  // the drive's share: what its turn does through the friction
       if (bk) work += h * cf * wb * (wb - wa);
     }
-  for (size_t i = 0; i < forces_.size(); ++i) {
-    const AppliedForce& af = forces_[i];
-    const int b = parts_[static_cast<size_t>(af.part)].body;
-    if (bodies_[b].kinematic) continue;
-    const Levers v = levers(m.force_lever[i], m.t[b], m.kt[b]);
-    work += af.over_step(t0, h).dot(h * (state_[b].v + m.vbar[b]) + (v.end - m.force_lever[i]));
-  }
-  for (size_t i = 0; i < kinematic_rows_.size(); ++i) {
+  for (const double w : m.force_work) work += w;
+  for (size_t i = 0; i < kinematic_rows_.size(); ++i) {  // (the driven bodies were at their end poses already)
     const size_t k = static_cast<size_t>(kinematic_rows_[i]);
     const Row& r = rows_[k];
     const bool ak = bodies_[r.a].kinematic;
@@ -680,34 +696,27 @@ void World::step_midpoint(double h) {
     work += (ak ? -m.lam[k] : m.lam[k]).dot(moved) / h;  // the impulse over h is the mean force
     row_impulse_[k] = m.lam[k];
   }
-  if (has_welds_)
-    for (size_t k = 0; k < n; ++k) row_impulse_[k] = m.lam[k];
   st.work = work;
   st.dissipated = dissipated;
-  for (size_t k = 0; k < n; ++k) hinge_force_[k] = m.lam[k] * inv_h;
-
-  // The end of the step.
-  for (size_t b = 0; b < nb; ++b) {
-    if (bodies_[b].kinematic) continue;
-    BodyState& s = state_[b];
-    const double t = m.t[b];
-    s.x += h * (s.v + m.vbar[b]);
-    s.v += 2 * m.vbar[b];
-    s.w = 4 * t * inv_h - s.w;
-    s.q = (s.q * cayley(t)).renormalised();
-    s.th += turn_of(t);
-  }
   t_ = t1;
   mark_state_changed();
-  if (predicted) {  // the gaps of the end state (as residual_row counts an iterate's)
+  // Per row: the mean force (the next step's first guess), the impulse where a weld needs it and, when the step ended
+  // on the remainder bound, the gap of the end state (as residual_row counts an iterate's) and a rolling contact's
+  // direction there, the next step's start (the same bits as computed there).
+  const auto end_row = [&](size_t k) HOT_INLINE {
+    hinge_force_[k] = m.lam[k] * inv_h;
+    if (has_welds_) row_impulse_[k] = m.lam[k];
+  };
+  if (predicted) {
     double worst2 = 0, largest2 = 0;
     for (size_t k = 0; k < n; ++k) {
+      end_row(k);
       const Row& r = rows_[k];
       const BodyState& a = state_[r.a];
       const BodyState& b = state_[r.b];
       const Vec2 pa = a.x + a.q * r.ra, pb = b.x + b.q * r.rb;
       Vec2 gap = pa - pb;
-      if (r.rolls) {  // and its contact's direction, the next step's start (the same bits as computed there)
+      if (r.rolls) {
         const Vec2 u = roll_direction(k, a, b);
         gap += (2 * roll_[k].radius) * u;
         m.roll_u0[k] = u;
@@ -720,6 +729,8 @@ void World::step_midpoint(double h) {
     m.roll_u0_structure = structure_;
     st.converged = !(final_gap > tol);
     ++st.bound_ends;
+  } else {
+    for (size_t k = 0; k < n; ++k) end_row(k);
   }
   // The hinges are closed to the tolerance (less rounding) at the iterate the positions were just set from: the next
   // step need not measure them again before it starts.

@@ -571,6 +571,7 @@ class World {
     std::vector<Vec2> vbar, vfree, lam, dlam, mid_a, mid_b, end_a, end_b;
     std::vector<BodyState> kinematic_start;
     std::vector<Vec2> force_lever;  // applied forces' levers at the start, world frame
+    std::vector<double> force_work;  // their work over the step
     std::vector<Vec2> kinematic_anchor;  // the kinematic rows' driven anchors at the start, world frame
     std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
     // The state and structure for which a step's end measured roll_u0 (its predicted end, midpoint.cpp).
