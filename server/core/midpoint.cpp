@@ -186,6 +186,7 @@ void World::step_midpoint(double h) {
   m.beta.resize(nb);
   m.vbar.resize(nb);
   m.vfree.resize(nb);
+  m.kt.resize(nb);  // 1 / (1 + t^2)
   const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl), inv_h = 1 / h;
   double spin_gyration = 0;  // the largest h / (4 I) times the radius of gyration (newton_remainder)
   for (size_t b = 0; b < nb; ++b) {
@@ -206,15 +207,15 @@ void World::step_midpoint(double h) {
     // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
     m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
     m.t[b] = 0.5 * h * s.w;
+    m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);  // kept beside every t (turn_by)
   }
   // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
   for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
     const size_t b = static_cast<size_t>(kinematic_bodies_[i]);
     const Rot rel = m.kinematic_start[i].q.inverse() * state_[b].q;
     m.t[b] = rel.s / (1 + rel.c);
+    m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);
   }
-  m.kt.resize(nb);  // 1 / (1 + t^2), kept beside every t (turn_by)
-  for (size_t b = 0; b < nb; ++b) m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);
   // The users' forces, as impulses over the step at their start levers (world frame).
   m.force_lever.clear();
   for (const AppliedForce& af : forces_) {
@@ -228,8 +229,6 @@ void World::step_midpoint(double h) {
   // step, a resumed log and a re-simulation take the same bits); the levers at the start.
   m.lam.resize(n);
   if (hinge_force_.size() != n) hinge_force_.assign(n, Vec2::Zero());
-  for (size_t k = 0; k < n; ++k) m.lam[k] = h * hinge_force_[k];
-  if (rescuing_ && seed_scale_ > 0) apply_seed(seed_scale_);  // a rescue's later stage (rescue_guess)
   m.mid_a.resize(n);
   m.mid_b.resize(n);
   m.end_a.resize(n);
@@ -243,12 +242,14 @@ void World::step_midpoint(double h) {
   // twice its radius to a lever.
   double lever2 = 0, radius = 0;
   for (size_t k = 0; k < n; ++k) {
+    m.lam[k] = h * hinge_force_[k];
     ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
     ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
     lever2 = std::max({lever2, ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
     if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
   }
   const double lever = std::sqrt(lever2) + 2 * radius;
+  if (rescuing_ && seed_scale_ > 0) apply_seed(seed_scale_);  // a rescue's later stage (rescue_guess)
   anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
 
   const double tol = options_.tolerance;
