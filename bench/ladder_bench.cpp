@@ -19,7 +19,9 @@
 //  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
 //    projection integrator on a hanging chain too stiff for SHAKE at 1 ms.
 // Counters: block_steps/s (the headline; 1e9 / it is ns per block-step), the solver's nonlinear iterations per step
-// (the last step's of each advance), the largest hinge error after the run [m] and the simulated time covered.
+// (the last step's of each advance), the steps that ended on Newton's remainder bound instead of a measuring pass
+// (bound_ends/step, docs/model.md section 3.1), the largest hinge error after the run [m] and the simulated time
+// covered.
 // Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
 #include "core/chain3d.hpp"
 #include "free_chain.hpp"

@@ -36,9 +36,9 @@ struct Rot {
 };
 
 // (cos a, sin a) for any angle, without libm: the direction of a rolling hinge's contact, found from its two bodies'
-// unwrapped angles once per hinge and step. libm's sincos was 6 % of a rolling ladder's step (more than the rest of
-// the contact's terms), and which of its builds runs depends on the processor (glibc picks an FMA one where it can),
-// so its last bit could differ between two machines replaying one log; these are the same operations everywhere.
+// unwrapped angles once per hinge and step. libm's sincos was 6 % of a rolling ladder's step at rest, and which of its
+// builds runs depends on the processor (glibc picks an FMA one where it can), so its last bit could differ between
+// two machines replaying one log; these are the same operations everywhere.
 // The angle is reduced by the nearest multiple k of pi / 2 (pi / 2 split into two 33-bit parts and a rest, so that
 // k times the parts is exact for |k| < 2^20) to |r| <= pi / 4, where the Taylor series below are exact to rounding
 // (the first omitted terms, r^19 / 19! and r^18 / 18!, are below 1e-17); then the quadrant k mod 4 swaps and negates.
@@ -49,8 +49,8 @@ inline Vec2 unit_at(double a) {
   constexpr double kPio2a = 1.5707963267341256, kPio2b = 6.077100506303966e-11, kPio2c = 2.0222662487959506e-21;
   const double k = (a * kTwoOverPi + kRound) - kRound;
   const double r = ((a - k * kPio2a) - k * kPio2b) - k * kPio2c;
-  // The series in z = r^2 by Estrin's scheme (pairs, then pairs of pairs) rather than Horner's: a quarter of the
-  // chain of dependent operations, so that the rows of a pass overlap instead of waiting on each other.
+  // The series in z = r^2 by Estrin's scheme (pairs, then pairs of pairs) rather than Horner's: about half the
+  // chain of dependent operations, so that the rows of a pass overlap more instead of waiting on each other.
   const double z = r * r, z2 = z * z, z4 = z2 * z2;
   const double ps = ((-1.0 / 6 + z * (1.0 / 120)) + z2 * (-1.0 / 5040 + z * (1.0 / 362880))) +
                     z4 * ((-1.0 / 39916800 + z * (1.0 / 6227020800)) +
