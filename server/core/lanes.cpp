@@ -1,0 +1,96 @@
+// Lanes (lanes.hpp): one helper thread, handed each job through two counters.
+#include "core/lanes.hpp"
+
+#include <chrono>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define LADDER_PAUSE() _mm_pause()
+#else
+#define LADDER_PAUSE() std::this_thread::yield()
+#endif
+
+namespace ladder::core {
+
+namespace {
+// How long the helper spins for the next job before it sleeps: longer than the serial stretches between a step's
+// parallel passes (a few microseconds to a few tens), so that a step pays one futex wake-up at most; short enough
+// that a server's idle helper leaves the processor to its publishing threads between ticks.
+constexpr auto kSpin = std::chrono::microseconds(50);
+}  // namespace
+
+Lanes::~Lanes() {
+  if (!helper_.joinable()) return;
+  stop_.store(true);
+  posted_.fetch_add(1);
+  posted_.notify_one();
+  helper_.join();
+}
+
+void Lanes::helper_loop() {
+  unsigned seen = 0;
+  for (;;) {
+    unsigned posted = posted_.load(std::memory_order_acquire);
+    if (posted == seen) {
+      const auto until = std::chrono::steady_clock::now() + kSpin;
+      for (int i = 0; (posted = posted_.load(std::memory_order_acquire)) == seen; ++i) {
+        LADDER_PAUSE();
+        if ((i & 63) == 63 && std::chrono::steady_clock::now() > until) break;
+      }
+      // Sleep. sleeping_ and posted_ are sequentially consistent on both sides: either run() sees sleeping_ and
+      // wakes the futex, or this thread sees the new job before it waits.
+      if (posted == seen) {
+        sleeping_.store(true);
+        while ((posted = posted_.load()) == seen) posted_.wait(seen);
+        sleeping_.store(false);
+      }
+    }
+    seen = posted;
+    if (stop_.load()) return;
+    unsigned expected = seen - 1;  // the job is run by whoever claims it first: this thread or run()'s caller
+    if (!claimed_.compare_exchange_strong(expected, seen)) continue;
+    try {
+      fn_(job_, 1);
+    } catch (...) {
+      error_ = std::current_exception();
+    }
+    done_.store(seen, std::memory_order_release);
+  }
+}
+
+void Lanes::run_erased(Fn fn, void* job) {
+  if (!helper_.joinable()) helper_ = std::thread([this] { helper_loop(); });
+  fn_ = fn;
+  job_ = job;
+  error_ = nullptr;
+  const unsigned ticket = posted_.fetch_add(1) + 1;
+  if (sleeping_.load()) posted_.notify_one();
+  std::exception_ptr mine;
+  try {
+    fn(job, 0);
+  } catch (...) {
+    mine = std::current_exception();
+  }
+  // The helper's lane, if the helper has not started it (it sleeps, or another thread has its processor: a server's
+  // publishing threads): then this thread runs it, and a busy machine costs at most the one-thread time.
+  unsigned expected = ticket - 1;
+  if (claimed_.compare_exchange_strong(expected, ticket)) {
+    try {
+      fn(job, 1);
+    } catch (...) {
+      if (!mine) mine = std::current_exception();
+    }
+    if (mine) std::rethrow_exception(mine);
+    return;
+  }
+  for (int i = 0; done_.load(std::memory_order_acquire) != ticket; ++i) {
+    if (i < 4096)
+      LADDER_PAUSE();
+    else
+      std::this_thread::yield();  // (the helper is not running: another process has the processor)
+  }
+  if (mine) std::rethrow_exception(mine);
+  if (error_) std::rethrow_exception(error_);
+}
+
+}  // namespace ladder::core

@@ -1,0 +1,62 @@
+// Two lanes of work for one step: run(job) calls job(0) on the calling thread and job(1) on a helper thread, and
+// returns when both are done. The midpoint step splits a long chain's Newton passes in two this way (midpoint.cpp:
+// one half eliminated from the top, the other from the bottom). What a step computes never depends on whether the
+// helper exists: with one thread, run() calls job(0) and then job(1) on the caller, and the two lanes write disjoint
+// data, so the results are the same bits.
+//
+// The helper is started on the first parallel run() and waits between jobs by spinning a little (a step's passes
+// follow each other within microseconds) and then sleeping on a futex (std::atomic::wait), so an idle server costs
+// no processor. Lane 1 is run by whichever thread claims it first: when the helper is slow to wake (asleep, or its
+// processor taken by another thread), the caller runs it after lane 0, so a busy machine costs at most the time of
+// one thread. A Lanes copied or moved into place starts without a helper (a World returned by value, a snapshot).
+#pragma once
+
+#include <atomic>
+#include <exception>
+#include <thread>
+#include <type_traits>
+
+namespace ladder::core {
+
+class Lanes {
+ public:
+  Lanes() = default;
+  Lanes(const Lanes&) {}
+  Lanes& operator=(const Lanes&) { return *this; }
+  ~Lanes();
+
+  // Whether run() may use a helper thread (the results do not depend on it).
+  void set_parallel(bool parallel) { parallel_ = parallel; }
+  bool parallel() const { return parallel_; }
+
+  // job(0) on the calling thread and job(1) on the helper (both on the caller when not parallel). An exception from
+  // either is rethrown here, after both have finished.
+  template <class Job>
+  void run(Job&& job) {
+    if (!parallel_) {
+      job(0);
+      job(1);
+      return;
+    }
+    using J = std::remove_reference_t<Job>;
+    run_erased([](void* j, int lane) { (*static_cast<J*>(j))(lane); }, &job);
+  }
+
+ private:
+  using Fn = void (*)(void*, int);
+  void run_erased(Fn fn, void* job);
+  void helper_loop();
+
+  bool parallel_ = false;
+  std::thread helper_;
+  Fn fn_ = nullptr;
+  void* job_ = nullptr;
+  std::exception_ptr error_;
+  std::atomic<unsigned> posted_{0};     // jobs posted (the helper runs each new one)
+  std::atomic<unsigned> claimed_{0};    // the last job claimed, by the helper or by run()'s caller
+  std::atomic<unsigned> done_{0};       // the last job the helper finished
+  std::atomic<bool> sleeping_{false};   // the helper waits on posted_'s futex: run() must wake it
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace ladder::core
