@@ -9,6 +9,7 @@ void BlockTridiag::resize(int n) {
   upper.assign(un, Mat2::Zero());
   schur_inv_.resize(un);
   gain_.resize(un);
+  rgain_.resize(un);
 }
 
 int BlockTridiag::factor() {

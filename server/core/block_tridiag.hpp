@@ -48,10 +48,21 @@ class BlockTridiag {
   int factor_forward(int n, RowFn&& row, std::vector<Vec2>& z) {
     if (size() != n) resize(n);
     z.resize(static_cast<size_t>(n));
+    return factor_down(n, row, z);
+  }
+
+  // The twisted use, for two threads ("burn at both ends"): rows [0, mid) are factored from the top by
+  // factor_down(mid, ...) and rows [mid, n) from the bottom by factor_up(mid, n, ...), concurrently (they touch
+  // disjoint rows; call resize(n) and size z first); meet() then solves the two middle rows, and backward(x, done,
+  // mid) and downward(mid, x, done) finish the two halves, again concurrently. The row callbacks are factor_forward()'s
+  // (factor_up() calls them for k = n-1 down to mid). The arithmetic differs from the one-sided elimination's in
+  // rounding only, and does not depend on whether the halves run concurrently.
+  template <class RowFn>
+  int factor_down(int end, RowFn&& row, std::vector<Vec2>& z) {
     int regularised = 0;
     Mat2 d, u_prev;
     Vec2 b;
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < end; ++k) {
       row(k, d, lower[k], u_prev, b);
       if (k > 0) {
         gain_[k - 1].noalias() = schur_inv_[k - 1] * u_prev;
@@ -62,6 +73,59 @@ class BlockTridiag {
       z[k].noalias() = schur_inv_[k] * b;
     }
     return regularised;
+  }
+  // From the bottom: T_k = D_k - U_k H_{k+1} with H_k = T_k^-1 L_k (kept for downward()), z_k = T_k^-1 (b_k - U_k
+  // z_{k+1}). Row mid's L and U_{mid-1} are kept for meet().
+  template <class RowFn>
+  int factor_up(int mid, int n, RowFn&& row, std::vector<Vec2>& z) {
+    int regularised = 0;
+    Mat2 d, l, u_prev;
+    Mat2 t_inv = Mat2::Zero(), l_below = Mat2::Zero(), u_below = Mat2::Zero();  // L_{k+1} and U_k, from row k + 1
+    Vec2 b;
+    for (int k = n - 1; k >= mid; --k) {
+      row(k, d, l, u_prev, b);
+      if (k < n - 1) {
+        Mat2& h = rgain_[k + 1];
+        h.noalias() = t_inv * l_below;
+        d.noalias() -= u_below * h;
+        b.noalias() -= u_below * z[k + 1];
+      }
+      regularised += invert(d, t_inv) ? 1 : 0;
+      z[k].noalias() = t_inv * b;
+      l_below = l;
+      u_below = u_prev;
+    }
+    meet_t_inv_ = t_inv;
+    meet_l_ = l_below;
+    meet_u_ = u_below;
+    return regularised;
+  }
+  // The two middle rows from the halves' last: x_{mid-1} = z_{mid-1} - G x_mid with G = S_{mid-1}^-1 U_{mid-1}
+  // (kept for backward()) and x_mid = z_mid - H x_{mid-1} with H = T_mid^-1 L_mid, so (I - G H) x_{mid-1} =
+  // z_{mid-1} - G z_mid. In place in x (= z). Returns 1 when that pivot had to be regularised.
+  int meet(int mid, std::vector<Vec2>& x) {
+    Mat2& g = gain_[mid - 1];
+    Mat2& h = rgain_[mid];
+    g.noalias() = schur_inv_[mid - 1] * meet_u_;
+    h.noalias() = meet_t_inv_ * meet_l_;
+    Mat2 m = Mat2::Identity(), m_inv;
+    m.noalias() -= g * h;
+    const int regularised = invert(m, m_inv) ? 1 : 0;
+    const Vec2 top = m_inv * (x[mid - 1] - g * x[mid]);
+    x[mid].noalias() -= h * top;
+    x[mid - 1] = top;
+    return regularised;
+  }
+  // After meet(): x_k = z_k - H_k x_{k-1} for k = mid+1..n-1, calling done(k) as soon as x_k is final (from mid, which
+  // is final already; x_{k-1} is final too by then).
+  template <class Done>
+  void downward(int mid, std::vector<Vec2>& x, Done&& done) const {
+    const int n = static_cast<int>(x.size());
+    done(mid);
+    for (int k = mid + 1; k < n; ++k) {
+      x[k].noalias() -= rgain_[k] * x[k - 1];
+      done(k);
+    }
   }
 
   // factor_forward() for a symmetric matrix (L_k = U_{k-1}^T, D_k symmetric), written out in scalars: every Schur
@@ -132,10 +196,10 @@ class BlockTridiag {
   }
 
   // Backward substitution x_k = z_k - S_k^-1 U_k x_{k+1} for k = n-1..0, in place, calling done(k) as soon as x_k
-  // is final (x_{k+1} is final too by then).
+  // is final (x_{k+1} is final too by then). With `end`, for k = end-1..0 (x_{end-1} being final: meet()).
   template <class Done>
-  void backward(std::vector<Vec2>& x, Done&& done) const {
-    const int n = size();
+  void backward(std::vector<Vec2>& x, Done&& done, int end = -1) const {
+    const int n = end >= 0 ? end : size();
     if (n == 0) return;
     done(n - 1);
     for (int k = n - 2; k >= 0; --k) {
@@ -168,6 +232,8 @@ class BlockTridiag {
  private:
   std::vector<Mat2> schur_inv_;  // inverse of the k-th Schur complement S_k = D_k - L_k S_{k-1}^-1 U_{k-1}
   std::vector<Mat2> gain_;       // S_k^-1 U_k, reused by the back substitution
+  std::vector<Mat2> rgain_;      // the twisted use's lower half: H_k = T_k^-1 L_k (factor_up)
+  Mat2 meet_t_inv_, meet_l_, meet_u_;  // factor_up()'s last row: T_mid^-1, L_mid, U_{mid-1}
 };
 
 // The same block LU with 3x3 blocks and only the fused use: the midpoint step's Newton system when hinges roll
@@ -208,14 +274,23 @@ class BlockTridiag3 {
   // pass costs).
   template <class RowFn>
   int factor_forward(int n, RowFn&& row, std::vector<Vec3>& z) {
-    const auto un = static_cast<size_t>(n);
-    gain_.resize(un);
-    z.resize(un);
+    resize(n);
+    z.resize(static_cast<size_t>(n));
+    return factor_down(n, row, z);
+  }
+  void resize(int n) {
+    gain_.resize(static_cast<size_t>(n));
+    rgain_.resize(static_cast<size_t>(n));
+  }
+
+  // The twisted use, as BlockTridiag's (factor_down, factor_up, meet, backward with `end`, downward).
+  template <class RowFn>
+  int factor_down(int end, RowFn&& row, std::vector<Vec3>& z) {
     int regularised = 0;
-    Mat3 d, schur_inv;
+    Mat3 d, schur_inv = Mat3::Zero();
     Coupling3 c;
     Vec3 b;
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < end; ++k) {
       row(k, d, c, b);
       if (k > 0) {
         // G = S^-1 U: its first two columns u S(:, j) + p_j S(:, 2), its third e S(:, 2).
@@ -235,13 +310,69 @@ class BlockTridiag3 {
       regularised += invert(d, schur_inv) ? 1 : 0;
       z[k].noalias() = schur_inv * b;
     }
+    last_inv_ = schur_inv;
     return regularised;
+  }
+  // From the bottom: T_k = D_k - U_k H_{k+1}, H_k = T_k^-1 L_k, with the couplings' patterns: H's first two columns
+  // l T^-1(:, j), its third T^-1 (s, g); U H's first two rows u H(i, :), its third p^T H(0:1, :) + e H(2, :).
+  template <class RowFn>
+  int factor_up(int mid, int n, RowFn&& row, std::vector<Vec3>& z) {
+    int regularised = 0;
+    Mat3 d, t_inv = Mat3::Zero();
+    Coupling3 c, below;  // below: row k + 1's couplings (its L and U_k)
+    Vec3 b;
+    for (int k = n - 1; k >= mid; --k) {
+      row(k, d, c, b);
+      if (k < n - 1) {
+        Mat3& h = rgain_[k + 1];
+        lower_gain(t_inv, below, h);
+        const Vec3& zb = z[k + 1];
+        for (int i = 0; i < 2; ++i) {
+          d.row(i) -= below.u * h.row(i);
+          b(i) -= below.u * zb(i);
+        }
+        d.row(2) -= below.p.x() * h.row(0) + below.p.y() * h.row(1) + below.e * h.row(2);
+        b(2) -= below.p.x() * zb(0) + below.p.y() * zb(1) + below.e * zb(2);
+      }
+      regularised += invert(d, t_inv) ? 1 : 0;
+      z[k].noalias() = t_inv * b;
+      below = c;
+    }
+    meet_t_inv_ = t_inv;
+    meet_ = below;
+    return regularised;
+  }
+  // As BlockTridiag::meet().
+  int meet(int mid, std::vector<Vec3>& x) {
+    Mat3& g = gain_[mid - 1];
+    Mat3& h = rgain_[mid];
+    const Mat3& s = last_inv_;
+    g.col(0) = meet_.u * s.col(0) + meet_.p.x() * s.col(2);
+    g.col(1) = meet_.u * s.col(1) + meet_.p.y() * s.col(2);
+    g.col(2) = meet_.e * s.col(2);
+    lower_gain(meet_t_inv_, meet_, h);
+    Mat3 m = Mat3::Identity(), m_inv;
+    m.noalias() -= g * h;
+    const int regularised = invert(m, m_inv) ? 1 : 0;
+    const Vec3 top = m_inv * (x[mid - 1] - g * x[mid]);
+    x[mid].noalias() -= h * top;
+    x[mid - 1] = top;
+    return regularised;
+  }
+  template <class Done>
+  void downward(int mid, std::vector<Vec3>& x, Done&& done) const {
+    const int n = static_cast<int>(x.size());
+    done(mid);
+    for (int k = mid + 1; k < n; ++k) {
+      x[k].noalias() -= rgain_[k] * x[k - 1];
+      done(k);
+    }
   }
 
   // As BlockTridiag::backward().
   template <class Done>
-  void backward(std::vector<Vec3>& x, Done&& done) const {
-    const int n = static_cast<int>(x.size());
+  void backward(std::vector<Vec3>& x, Done&& done, int end = -1) const {
+    const int n = end >= 0 ? end : static_cast<int>(x.size());
     if (n == 0) return;
     done(n - 1);
     for (int k = n - 2; k >= 0; --k) {
@@ -251,20 +382,25 @@ class BlockTridiag3 {
   }
 
   // By cofactors: the inverse is the adjugate over the determinant. Singular when det^2 <= 1e-28 times the product
-  // of the rows' squared norms.
-  static bool invert(Mat3 m, Mat3& out) {
+  // of the rows' squared norms. Forced inline: called once per row from three places, GCC otherwise calls it (7 %
+  // of a rolling ladder's step at 1000 blocks); the rare singular case is kept out of line.
+  [[gnu::always_inline]] static bool invert(const Mat3& m, Mat3& out) {
     const double bound2 = m.row(0).squaredNorm() * m.row(1).squaredNorm() * m.row(2).squaredNorm();
-    double det = cofactors(m, out);
-    const bool regularised = !(det * det > 1e-28 * bound2);
-    if (regularised) {
-      for (int i = 0; i < 3; ++i) {
-        const double norm = m.row(i).norm();
-        m(i, i) += 1e-12 * (norm > 0 ? norm : 1.0);
-      }
-      det = cofactors(m, out);
+    const double det = cofactors(m, out);
+    if (!(det * det > 1e-28 * bound2)) {
+      invert_regularised(m, out);
+      return true;
     }
     out *= 1 / det;
-    return regularised;
+    return false;
+  }
+  [[gnu::noinline, gnu::cold]] static void invert_regularised(Mat3 m, Mat3& out) {
+    for (int i = 0; i < 3; ++i) {
+      const double norm = m.row(i).norm();
+      m(i, i) += 1e-12 * (norm > 0 ? norm : 1.0);
+    }
+    const double det = cofactors(m, out);
+    out *= 1 / det;
   }
 
  private:
@@ -282,7 +418,17 @@ class BlockTridiag3 {
     return m(0, 0) * adj(0, 0) + m(0, 1) * adj(1, 0) + m(0, 2) * adj(2, 0);
   }
 
-  std::vector<Mat3> gain_;  // S_k^-1 U_k
+  // H = T^-1 L for L = c.lower(): l T^-1(:, 0), l T^-1(:, 1), T^-1 (s, g).
+  static void lower_gain(const Mat3& t_inv, const Coupling3& c, Mat3& h) {
+    h.col(0) = c.l * t_inv.col(0);
+    h.col(1) = c.l * t_inv.col(1);
+    h.col(2) = c.s.x() * t_inv.col(0) + c.s.y() * t_inv.col(1) + c.g * t_inv.col(2);
+  }
+
+  std::vector<Mat3> gain_;   // S_k^-1 U_k
+  std::vector<Mat3> rgain_;  // the twisted use's lower half: H_k = T_k^-1 L_k
+  Mat3 last_inv_, meet_t_inv_;  // factor_down()'s last S^-1, factor_up()'s last T^-1
+  Coupling3 meet_;              // row mid's couplings (its L and U_{mid-1})
 };
 
 }  // namespace ladder::core

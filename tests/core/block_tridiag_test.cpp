@@ -5,10 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
 
 using ladder::core::BlockTridiag;
+using ladder::core::BlockTridiag3;
+using ladder::core::Coupling3;
 using ladder::core::Mat2;
+using ladder::core::Mat3;
 using ladder::core::Vec2;
+using ladder::core::Vec3;
 
 namespace {
 
@@ -46,6 +51,18 @@ Eigen::MatrixXd dense(const BlockTridiag& sys) {
 
 }  // namespace
 
+// A random right-hand side: b per row, and the same stacked for the dense solve.
+Eigen::VectorXd random_rhs(int n, std::mt19937& rng, std::vector<Vec2>& b) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  b.resize(static_cast<size_t>(n));
+  Eigen::VectorXd bd(2 * n);
+  for (int k = 0; k < n; ++k) {
+    b[k] = Vec2(u(rng), u(rng));
+    bd.segment<2>(2 * k) = b[k];
+  }
+  return bd;
+}
+
 class BlockTridiagTest : public ::testing::TestWithParam<std::pair<int, int>> {};
 
 // Relative error of the solution against partial-pivoting LU: both are backward stable on these well-conditioned
@@ -54,15 +71,8 @@ TEST_P(BlockTridiagTest, MatchesDenseLU) {
   const auto [n, cut] = GetParam();
   std::mt19937 rng(static_cast<unsigned>(n * 31 + cut));
   BlockTridiag sys = random_system(n, cut, rng);
-  const Eigen::MatrixXd a = dense(sys);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec2> b(static_cast<size_t>(n));
-  Eigen::VectorXd bd(2 * n);
-  for (int k = 0; k < n; ++k) {
-    b[k] = Vec2(u(rng), u(rng));
-    bd.segment<2>(2 * k) = b[k];
-  }
-  const Eigen::VectorXd ref = a.partialPivLu().solve(bd);
+  std::vector<Vec2> b;
+  const Eigen::VectorXd ref = dense(sys).partialPivLu().solve(random_rhs(n, rng, b));
   EXPECT_EQ(sys.factor(), 0);
   sys.solve(b);
   double err = 0;
@@ -73,6 +83,56 @@ TEST_P(BlockTridiagTest, MatchesDenseLU) {
 INSTANTIATE_TEST_SUITE_P(Sizes, BlockTridiagTest,
                          ::testing::Values(std::pair{1, 0}, std::pair{2, 0}, std::pair{7, 0}, std::pair{100, 0},
                                            std::pair{100, 5}, std::pair{300, 1}));
+
+// The twisted solve of `sys` (B x B blocks, rows from `row`) split at `mid`, against `ref`: within 1e-12 relative, no
+// pivot regularised, and each half handing every x_k over once, in its order (the top half upwards from mid - 1, the
+// bottom half downwards from mid), already final.
+template <int B, class Sys, class Row>
+void check_twisted(Sys& sys, Row&& row, int n, int mid, const Eigen::VectorXd& ref, bool cut) {
+  using V = Eigen::Matrix<double, B, 1>;
+  const std::string where = "n " + std::to_string(n) + " mid " + std::to_string(mid) + " cut " + std::to_string(cut);
+  sys.resize(n);
+  std::vector<V> x(static_cast<size_t>(n));
+  EXPECT_EQ(sys.factor_down(mid, row, x) + sys.factor_up(mid, n, row, x) + sys.meet(mid, x), 0) << where;
+  std::vector<int> top, bottom;
+  std::vector<V> handed(static_cast<size_t>(n));
+  sys.backward(x, [&](int k) { top.push_back(k), handed[k] = x[k]; }, mid);
+  sys.downward(mid, x, [&](int k) { bottom.push_back(k), handed[k] = x[k]; });
+  double err = 0;
+  for (int k = 0; k < n; ++k) err = std::max(err, (x[k] - ref.template segment<B>(B * k)).norm());
+  EXPECT_LT(err / ref.norm(), 1e-12) << where;
+  EXPECT_EQ(handed, x) << where;
+  ASSERT_EQ(top.size() + bottom.size(), static_cast<size_t>(n)) << where;
+  for (int k = 0; k < mid; ++k) EXPECT_EQ(top[k], mid - 1 - k) << where;
+  for (int k = mid; k < n; ++k) EXPECT_EQ(bottom[k - mid], k) << where;
+}
+
+// The twisted use (two halves, one factored from each end, met in the middle: the midpoint step's split passes)
+// against a dense LU of the same non-symmetric system, for split points after the first row, in the middle and before
+// the last row, with the couplings at the split present or cut (check_twisted).
+TEST(BlockTridiag, TwistedSolveMatchesDenseLU) {
+  for (const int n : {2, 3, 8, 101}) {
+    for (const int mid : {1, n / 2, n - 1}) {
+      for (const bool cut : {false, true}) {
+        std::mt19937 rng(static_cast<unsigned>(n * 7 + mid * 3 + cut));
+        std::uniform_real_distribution<double> u(-1.0, 1.0);
+        BlockTridiag sys = random_system(n, 0, rng);
+        for (int k = 1; k < n; ++k) sys.lower[k] << u(rng), u(rng), u(rng), u(rng);  // not symmetric
+        if (cut) sys.lower[mid].setZero(), sys.upper[mid - 1].setZero();
+        std::vector<Vec2> b;
+        const Eigen::VectorXd ref = dense(sys).partialPivLu().solve(random_rhs(n, rng, b));
+        const auto row = [&](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) {
+          d = sys.diag[k];
+          l = sys.lower[k];
+          u_prev = k > 0 ? sys.upper[k - 1] : Mat2::Zero();
+          rhs = b[k];
+        };
+        BlockTridiag twisted;
+        check_twisted<2>(twisted, row, n, mid, ref, cut);
+      }
+    }
+  }
+}
 
 // A singular pivot (two identical hinge rows) is regularised and counted, not turned into infinities.
 TEST(BlockTridiag, SingularPivotIsCountedAndFinite) {
@@ -157,48 +217,58 @@ TEST(BlockTridiag, SymmetricFusedPassSolvesTheSameSystem) {
   }
 }
 
-// The 3x3 solver (the midpoint step's Newton system with rolling hinges) against a dense LU of the same system:
-// random non-symmetric diagonal blocks with a dominant diagonal, random couplings of the step's pattern
-// (Coupling3), every fifth pair of rows uncoupled, columns of mixed scale (impulses and turns) as the step's are.
-// Same bound as above.
-TEST(BlockTridiag3, MatchesDenseLU) {
-  using ladder::core::BlockTridiag3, ladder::core::Coupling3, ladder::core::Mat3, ladder::core::Vec3;
-  for (const int n : {1, 2, 7, 100}) {
-    std::mt19937 rng(static_cast<unsigned>(n));
+// A random 3x3 system of the midpoint step's pattern (its Newton system with rolling hinges): non-symmetric diagonal
+// blocks with a dominant diagonal, random couplings (Coupling3) of rows k and k - 1 where coupled(k), and columns of
+// mixed scale (impulses and turns) as the step's are: `a` and `bd` the dense system, row() the blocks for the
+// solver, the unknowns' scales folded in (a coupling's columns 0 and 1 by scale(0), column 2 by scale(2)).
+struct Random3 {
+  std::vector<Mat3> d;
+  std::vector<Coupling3> c;  // c[k]: L_k and U_{k-1}
+  std::vector<Vec3> b;
+  Eigen::Vector3d scale;
+  Eigen::MatrixXd a;
+  Eigen::VectorXd bd;
+
+  template <class Coupled>
+  Random3(int n, std::mt19937& rng, Coupled coupled, const Eigen::Vector3d& column_scale)
+      : d(n), c(n), b(n), scale(column_scale), a(Eigen::MatrixXd::Zero(3 * n, 3 * n)), bd(3 * n) {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const Eigen::Vector3d scale(1e-2, 1e-2, 1.0);
-    std::vector<Mat3> d(n);
-    std::vector<Coupling3> c(n);  // c[k]: L_k and U_{k-1}
-    std::vector<Vec3> b(n);
     for (int k = 0; k < n; ++k) {
       for (int i = 0; i < 9; ++i) d[k](i / 3, i % 3) = u(rng);
       d[k] += 6.0 * Mat3::Identity();
-      if (k % 5 != 0) {
+      if (coupled(k)) {
         c[k].l = u(rng), c[k].g = u(rng), c[k].u = u(rng), c[k].e = u(rng);
         c[k].s = {u(rng), u(rng)};
         c[k].p = {u(rng), u(rng)};
       }
       b[k] = Vec3(u(rng), u(rng), u(rng));
     }
-    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(3 * n, 3 * n);
-    Eigen::VectorXd bd(3 * n);
     for (int k = 0; k < n; ++k) {
       a.block<3, 3>(3 * k, 3 * k) = d[k] * scale.asDiagonal();
       if (k > 0) a.block<3, 3>(3 * k, 3 * (k - 1)) = c[k].lower() * scale.asDiagonal();
       if (k + 1 < n) a.block<3, 3>(3 * k, 3 * (k + 1)) = c[k + 1].upper() * scale.asDiagonal();
       bd.segment<3>(3 * k) = b[k];
     }
-    const Eigen::VectorXd ref = a.partialPivLu().solve(bd);
+  }
+  void row(int k, Mat3& dk, Coupling3& ck, Vec3& bk) const {
+    dk = d[k] * scale.asDiagonal();
+    ck = c[k];
+    ck.l *= scale(0), ck.s *= scale(2), ck.g *= scale(2);
+    ck.u *= scale(0), ck.p *= scale(0), ck.e *= scale(2);
+    bk = b[k];
+  }
+};
+
+// The 3x3 solver against a dense LU of the same system, every fifth pair of rows uncoupled. Same bound as above.
+TEST(BlockTridiag3, MatchesDenseLU) {
+  for (const int n : {1, 2, 7, 100}) {
+    std::mt19937 rng(static_cast<unsigned>(n));
+    const Random3 r(n, rng, [](int k) { return k % 5 != 0; }, Eigen::Vector3d(1e-2, 1e-2, 1.0));
+    const Eigen::VectorXd ref = r.a.partialPivLu().solve(r.bd);
     BlockTridiag3 sys;
     std::vector<Vec3> x;
-    // The unknowns' scales folded into the blocks: a coupling's columns 0 and 1 by scale(0), column 2 by scale(2).
-    const int regularised = sys.factor_forward(n, [&](int k, Mat3& dk, Coupling3& ck, Vec3& bk) {
-      dk = d[k] * scale.asDiagonal();
-      ck = c[k];
-      ck.l *= scale(0), ck.s *= scale(2), ck.g *= scale(2);
-      ck.u *= scale(0), ck.p *= scale(0), ck.e *= scale(2);
-      bk = b[k];
-    }, x);
+    const int regularised =
+        sys.factor_forward(n, [&](int k, Mat3& dk, Coupling3& ck, Vec3& bk) { r.row(k, dk, ck, bk); }, x);
     EXPECT_EQ(regularised, 0);
     std::vector<int> order;
     sys.backward(x, [&](int k) { order.push_back(k); });
@@ -209,12 +279,27 @@ TEST(BlockTridiag3, MatchesDenseLU) {
   }
 }
 
+// The 3x3 twisted use against the same dense LU as above, split after the first row, in the middle and before the
+// last, with the couplings at the split present or cut (check_twisted).
+TEST(BlockTridiag3, TwistedSolveMatchesDenseLU) {
+  for (const int n : {2, 3, 8, 101}) {
+    for (const int mid : {1, n / 2, n - 1}) {
+      for (const bool cut : {false, true}) {
+        std::mt19937 rng(static_cast<unsigned>(n * 7 + mid * 3 + cut));
+        const Random3 r(n, rng, [&](int k) { return k > 0 && !(cut && k == mid); }, Eigen::Vector3d(1e-2, 1e-2, 1));
+        BlockTridiag3 sys;
+        const auto row = [&](int k, Mat3& dk, Coupling3& ck, Vec3& bk) { r.row(k, dk, ck, bk); };
+        check_twisted<3>(sys, row, n, mid, r.a.partialPivLu().solve(r.bd), cut);
+      }
+    }
+  }
+}
+
 // A singular 3x3 pivot (a zero row) is regularised and counted; the answer stays finite.
 TEST(BlockTridiag3, SingularPivotIsCountedAndFinite) {
-  using ladder::core::BlockTridiag3, ladder::core::Mat3, ladder::core::Vec3;
   BlockTridiag3 sys;
   std::vector<Vec3> x;
-  const int regularised = sys.factor_forward(1, [](int, Mat3& d, ladder::core::Coupling3& c, Vec3& b) {
+  const int regularised = sys.factor_forward(1, [](int, Mat3& d, Coupling3& c, Vec3& b) {
     d << 1, 0, 0, 0, 1, 0, 0, 0, 0;
     c = {};
     b = Vec3(1, 2, 3);
