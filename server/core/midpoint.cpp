@@ -141,6 +141,37 @@ constexpr std::array<double, 5> kRescueSecond = {0.25, 0.5, 0.7, 0.85, 0.95};
 constexpr double kRemainderShare = 1e-2;
 constexpr double kSpinRemainderShare = 0.25;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// A chain of at least this many rows is solved in two halves, one from each end (BlockTridiag's twisted use), on two
+// threads when the World may use them (Options::threads): each Newton pass then takes about half the time. Shorter
+// ones gain less than a hand-over costs. The halves are the same whether or not they run concurrently, so a step's
+// bits do not depend on the threads; they differ from the one-sided elimination's in rounding only.
+constexpr int kSplitRows = 2048;
+
+namespace {
+// What a pass over the rows measures (per lane: the two halves of a split pass keep their own, merged after).
+struct PassAcc {
+  double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;  // the residuals (finish_body, count_gap)
+  bool exact = true;                                       // newton_remainder's: no floored or limited turn
+  double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
+  int pivots = 0;                                          // regularised pivots
+  void merge(const PassAcc& o) {
+    worst_rho = std::max(worst_rho, o.worst_rho);
+    worst_gap2 = std::max(worst_gap2, o.worst_gap2);
+    largest_gap2 = std::max(largest_gap2, o.largest_gap2);
+    exact = exact && o.exact;
+    dt_max = std::max(dt_max, o.dt_max);
+    cross_max = std::max(cross_max, o.cross_max);
+    lam_max2 = std::max(lam_max2, o.lam_max2);
+    pivots += o.pivots;
+  }
+};
+// The order a pass visits the rows in, which decides on which side a rolling row's contact terms are computed
+// (rolling_once in step_midpoint): from the top (body a's side), from the bottom (body b's), or both (the body at a
+// split, finished before the halves start).
+using FromTop = std::integral_constant<int, 0>;
+using FromBottom = std::integral_constant<int, 1>;
+using BothSides = std::integral_constant<int, 2>;
+}  // namespace
 
 void World::step_midpoint(double h) {
   MidpointWork& m = mid_;
@@ -188,27 +219,38 @@ void World::step_midpoint(double h) {
   m.vfree.resize(nb);
   m.kt.resize(nb);  // 1 / (1 + t^2)
   const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl), inv_h = 1 / h;
-  double spin_gyration = 0;  // the largest h / (4 I) times the radius of gyration (newton_remainder)
-  for (size_t b = 0; b < nb; ++b) {
-    const Body& body = bodies_[b];
-    const BodyState& s = state_[b];
-    if (body.kinematic) {
-      m.alpha[b] = 0;
-      m.vbar[b] = Vec2::Zero();
-      continue;
+  // A long chain's passes run in two halves (kSplitRows), and so do the step's loops over the bodies and the rows:
+  // halves(count, fn) calls fn(from, to, lane) for [0, count / 2) and [count / 2, count), or fn(0, count, 0).
+  const int split = static_cast<int>(n) >= kSplitRows ? static_cast<int>(n) / 2 : 0;
+  lanes_.set_parallel(options_.threads >= 2);
+  const auto halves = [&](size_t count, auto&& fn) {
+    if (split == 0) return fn(size_t{0}, count, 0);
+    lanes_.run([&](int l) { fn(l == 0 ? size_t{0} : count / 2, l == 0 ? count / 2 : count, l); });
+  };
+  double lane_max[2] = {0, 0};  // the largest h / (4 I) times the radius of gyration (newton_remainder), per lane
+  halves(nb, [&](size_t from, size_t to, int l) HOT_INLINE {
+    for (size_t b = from; b < to; ++b) {
+      const Body& body = bodies_[b];
+      const BodyState& s = state_[b];
+      if (body.kinematic) {
+        m.alpha[b] = 0;
+        m.vbar[b] = Vec2::Zero();
+        continue;
+      }
+      // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
+      // -c_a I_p w (the parts' centres average to the body's).
+      m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
+      m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
+      lane_max[l] = std::max(lane_max[l], m.spin_gain[b] * body.gyration);
+      m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
+      m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
+      // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
+      m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
+      m.t[b] = 0.5 * h * s.w;
+      m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);  // kept beside every t (turn_by)
     }
-    // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
-    // -c_a I_p w (the parts' centres average to the body's).
-    m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
-    m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
-    spin_gyration = std::max(spin_gyration, m.spin_gain[b] * body.gyration);
-    m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
-    m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
-    // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
-    m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
-    m.t[b] = 0.5 * h * s.w;
-    m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);  // kept beside every t (turn_by)
-  }
+  });
+  const double spin_gyration = std::max(lane_max[0], lane_max[1]);
   // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
   for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
     const size_t b = static_cast<size_t>(kinematic_bodies_[i]);
@@ -240,15 +282,18 @@ void World::step_midpoint(double h) {
   ub0_.resize(n);
   // The longest arc-centre lever and contact radius (newton_remainder): a rolling contact's offset adds at most
   // twice its radius to a lever.
-  double lever2 = 0, radius = 0;
-  for (size_t k = 0; k < n; ++k) {
-    m.lam[k] = h * hinge_force_[k];
-    ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
-    ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
-    lever2 = std::max({lever2, ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
-    if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
-  }
-  const double lever = std::sqrt(lever2) + 2 * radius;
+  double lane_lever2[2] = {0, 0}, lane_radius[2] = {0, 0};
+  halves(n, [&](size_t from, size_t to, int l) HOT_INLINE {
+    for (size_t k = from; k < to; ++k) {
+      m.lam[k] = h * hinge_force_[k];
+      ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
+      ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
+      lane_lever2[l] = std::max({lane_lever2[l], ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
+      if (rows_[k].rolls) lane_radius[l] = std::max(lane_radius[l], roll_[k].radius);
+    }
+  });
+  const double lever =
+      std::sqrt(std::max(lane_lever2[0], lane_lever2[1])) + 2 * std::max(lane_radius[0], lane_radius[1]);
   if (rescuing_ && seed_scale_ > 0) apply_seed(seed_scale_);  // a rescue's later stage (rescue_guess)
   anchors_version_ = 0;       // not the current state's (the driven bodies have moved)
 
@@ -273,11 +318,21 @@ void World::step_midpoint(double h) {
     m.couple_ba.resize(n);
   };
   if (has_rolling_) make_exact();
-  // What this iteration's Newton step was (newton_remainder): its Jacobian exact (no turn stiffness floored, no
-  // correction limited) and, when it is tracked, its largest turn correction and the largest product of a body's
-  // turn correction and its rows' impulse corrections (their 1-norms).
-  bool exact = true;
-  double dt_max = 0, cross_max = 0;
+  // What this iteration's Newton step was (newton_remainder) is gathered per lane (PassAcc): its Jacobian exact (no
+  // turn stiffness floored, no correction limited) and, when it is tracked, its largest turn correction and the
+  // largest product of a body's turn correction and its rows' impulse corrections (their 1-norms).
+  // A long chain's passes are split (kSplitRows): rows [0, split) from the top on lane 0, [split, n) from the bottom on
+  // lane 1. The body the two middle rows share (`skip`, when it moves) is finished before the halves start and
+  // corrected by lane 0, so that each lane writes only its own rows' and bodies' terms.
+  int skip = -1;
+  if (split > 0) {
+    const Row& r = rows_[static_cast<size_t>(split)];
+    if (r.link_prev && !bodies_[r.a].kinematic) skip = r.a;
+    if (three) m.newton3.resize(static_cast<int>(n));
+    else if (newton_.size() != static_cast<int>(n)) newton_.resize(static_cast<int>(n));
+    if (three) m.dx.resize(n);
+  }
+  PassAcc lane[2];
   // A dynamic body's vbar - v at the current impulses of its rows (`prev`, `next` as finish_body's).
   const auto mean_velocity = [&](int i, int prev, int next) HOT_INLINE {
     Vec2 lin = Vec2::Zero();
@@ -287,19 +342,20 @@ void World::step_midpoint(double h) {
   };
   // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
   // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess.
-  const auto count_gap = [](const Vec2& gap, const Vec2& pa, const Vec2& pb, double& worst2, double& largest2)
-      HOT_INLINE {
+  const auto count_gap = [](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc) HOT_INLINE {
     const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
     const double excess = std::max(gap.norm() - floor, 0.0);
-    worst2 = std::isfinite(excess) ? std::max(worst2, excess * excess) : kInfinity;
-    largest2 = std::max(largest2, gap.squaredNorm());
+    acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
+    acc.largest_gap2 = std::max(acc.largest_gap2, gap.squaredNorm());
   };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
-  // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them).
-  const auto finish_body = [&](int i, int prev, int next, double& worst_rho, auto newton) HOT_INLINE {
+  // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them). `side`
+  // (FromTop, FromBottom, BothSides): which of its rows' rolling terms it computes (rolling_once below).
+  const auto finish_body = [&](int i, int prev, int next, PassAcc& acc, auto newton, auto side) HOT_INLINE {
     constexpr bool kNewton = decltype(newton)::value;
+    constexpr int kSide = decltype(side)::value;
     const double ti = m.t[i], k = m.kt[i];
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
     // With rolling rows (rolling_newton above): sum of dmid_i x L over them, and dmid_j x L per row.
@@ -309,7 +365,11 @@ void World::step_midpoint(double h) {
       Levers v = levers(ub0_[prev], ti, k);
       stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
-        const Rolling& c = m.roll[prev];  // rolling_once (below): computed for body a in this pass
+        const int a = rows_[prev].a;
+        const Rolling& c = kSide == FromTop::value
+                               ? m.roll[prev]  // computed for body a in this pass
+                               : (m.roll[prev] = rolling<kNewton>(m.roll_u0[prev], roll_[prev].radius, m.t[a], ti,
+                                                                  m.kt[a], k));
         v.mid -= c.mid;
         v.end -= c.end;
         if constexpr (kNewton) {
@@ -331,8 +391,11 @@ void World::step_midpoint(double h) {
       Levers v = levers(ua0_[next], ti, k);
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
-        const Rolling& c = m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti,
-                                                                m.t[rows_[next].b], k, m.kt[rows_[next].b]);
+        const int b = rows_[next].b;
+        const Rolling& c = kSide == FromBottom::value
+                               ? m.roll[next]  // computed for body b in this pass
+                               : (m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti, m.t[b], k,
+                                                                  m.kt[b]));
         v.mid += c.mid;
         v.end += c.end;
         if constexpr (kNewton) {
@@ -362,7 +425,7 @@ void World::step_midpoint(double h) {
       // Floored: a hinge pushed hard enough would make it vanish, and Newton then takes the floor's direction
       // instead of a singular one (the answer is the same; the iteration's path is not).
       const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
-      if (!(jac >= kJacFloor)) exact = false;
+      if (!(jac >= kJacFloor)) acc.exact = false;
       const double inv_jac = 1 / std::max(jac, kJacFloor);
       m.inv_jac[i] = inv_jac;
       if (three) {  // the exact Newton's terms (rolling_newton above)
@@ -377,23 +440,23 @@ void World::step_midpoint(double h) {
     // several N m s on each block that cancel to a small net turn).
     const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
     const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * bodies_[i].gyration;
-    worst_rho = std::isfinite(rho_excess) ? std::max(worst_rho, rho_excess) : kInfinity;
+    acc.worst_rho = std::isfinite(rho_excess) ? std::max(acc.worst_rho, rho_excess) : kInfinity;
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
   // With `track` (std::true_type) it records what newton_remainder needs; dl is the sum of the 1-norms of the
   // impulse corrections of the body's rows.
-  const auto turn_by = [&](int i, double dt, auto track, double dl) HOT_INLINE {
+  const auto turn_by = [&](int i, double dt, auto track, double dl, PassAcc& acc) HOT_INLINE {
     const double t = std::clamp(m.t[i] + std::clamp(dt, -kMaxTurnChange, kMaxTurnChange), -kMaxT, kMaxT);
     if constexpr (decltype(track)::value) {
-      if (t != m.t[i] + dt) exact = false;  // limited (or not finite)
-      dt_max = std::max(dt_max, std::abs(dt));
-      cross_max = std::max(cross_max, std::abs(dt) * dl);
+      if (t != m.t[i] + dt) acc.exact = false;  // limited (or not finite)
+      acc.dt_max = std::max(acc.dt_max, std::abs(dt));
+      acc.cross_max = std::max(acc.cross_max, std::abs(dt) * dl);
     }
     m.t[i] = t;
     m.kt[i] = 1 / (1 + t * t);
   };
   // A body's correction once its rows' are known: dt = (-rho + h / (4 I) sum sigma mid x dL) / jac.
-  const auto correct_body = [&](int i, int prev, int next, auto track) HOT_INLINE {
+  const auto correct_body = [&](int i, int prev, int next, auto track, PassAcc& acc) HOT_INLINE {
     double dang = 0, dl = 0;
     if (prev >= 0) dang -= cross(m.mid_b[prev], m.dlam[prev]);
     if (next >= 0) dang += cross(m.mid_a[next], m.dlam[next]);
@@ -401,7 +464,7 @@ void World::step_midpoint(double h) {
       if (prev >= 0) dl += m.dlam[prev].cwiseAbs().sum();
       if (next >= 0) dl += m.dlam[next].cwiseAbs().sum();
     }
-    turn_by(i, (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i], track, dl);
+    turn_by(i, (-m.rho[i] + m.spin_gain[i] * dang) * m.inv_jac[i], track, dl, acc);
   };
   reduced_applies();  // (once per structure) loose_bodies_: the dynamic bodies in no hinge
   double last_rho = kInfinity, final_gap = 0;
@@ -410,8 +473,7 @@ void World::step_midpoint(double h) {
   bool expect_converged = m.guess_was_right;
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   for (int iteration = 0;; ++iteration) {
-    exact = true;
-    dt_max = cross_max = 0;
+    lane[0] = lane[1] = PassAcc{};
     if (forced) {  // the users' forces' moments at their midpoint levers, and their loads along the end levers
       std::fill(m.force_ang.begin(), m.force_ang.end(), 0.0);
       std::fill(m.force_stiff.begin(), m.force_stiff.end(), 0.0);
@@ -425,39 +487,58 @@ void World::step_midpoint(double h) {
         m.force_stiff[b] += v.end.dot(j);
       }
     }
-    double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;
-    if (expect_converged) for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho, std::false_type{});
-    // Row k's bodies finished (body a at a chain's start, body b always, with its next row's side when it has one)
-    // and its gap measured. rolling_once: a rolling row's contact terms are computed once per pass, on its body a's
-    // side (in finish_body, or here when a is driven), and read on body b's: every pass runs k = 0, 1, ... with the
-    // turns fixed, and body a's side of row k comes first (in row k - 1's pass when it is shared, else here).
-    const auto residual_row = [&](int k, auto newton) HOT_INLINE {
+    if (expect_converged)
+      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::false_type{}, FromTop{});
+    // Row k's bodies finished and its gap measured. From the top (side FromTop): body a at a chain's start, body b
+    // always, with its next row's side when it has one. From the bottom: body b at a chain's end, body a always, with
+    // its previous row's side. rolling_once: a rolling row's contact terms are computed once per pass, on the side of
+    // its body that the pass finishes first (in finish_body, or here when that body is driven), and read on the
+    // other's: every pass runs over the rows in order with the turns fixed.
+    const auto residual_row = [&](int k, PassAcc& acc, auto newton, auto side) HOT_INLINE {
       constexpr bool kNewton = decltype(newton)::value;
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
-      if (ak) {  // (a driven side's levers enter no angular equation: only its end point counts)
-        if (r.rolls)
-          m.roll[k] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
-        m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k];
-      } else if (!r.link_prev) {
-        finish_body(r.a, -1, k, worst_rho, newton);
-      }
-      if (bk) {
-        m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k];
+      const auto roll_here = [&] {
+        m.roll[k] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
+      };
+      // (a driven side's levers enter no angular equation: only its end point counts)
+      const auto driven_a = [&] { m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k]; };
+      const auto driven_b = [&] { m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k]; };
+      if constexpr (decltype(side)::value == FromTop::value) {
+        if (ak) {
+          if (r.rolls) roll_here();
+          driven_a();
+        } else if (!r.link_prev) {
+          finish_body(r.a, -1, k, acc, newton, side);
+        }
+        if (bk)
+          driven_b();
+        else if (r.b != skip)
+          finish_body(r.b, k, r.shares_next ? k + 1 : -1, acc, newton, side);
       } else {
-        finish_body(r.b, k, r.shares_next ? k + 1 : -1, worst_rho, newton);
+        if (bk) {
+          if (r.rolls) roll_here();
+          driven_b();
+        } else if (!r.shares_next) {
+          finish_body(r.b, k, -1, acc, newton, side);
+        }
+        if (ak)
+          driven_a();
+        else if (r.a != skip)
+          finish_body(r.a, r.link_prev ? k - 1 : -1, k, acc, newton, side);
       }
       const BodyState& a = state_[r.a];
       const BodyState& b = state_[r.b];
       const Vec2 pa = ak ? Vec2(a.x + m.end_a[k]) : Vec2(a.x + h * (a.v + m.vbar[r.a]) + m.end_a[k]);
       const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
       const Vec2 gap = pa - pb;
-      count_gap(gap, pa, pb, worst_gap2, largest_gap2);
+      count_gap(gap, pa, pb, acc);
       return gap;
     };
-    // The same, then the row's Newton blocks, factored and forward-substituted (BlockTridiag::factor_forward).
-    const auto row = [&](int k, Mat2& d, Mat2& lower, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
-      const Vec2 gap = residual_row(k, std::true_type{});
+    // The same, then the row's Newton blocks, for BlockTridiag's factorisation.
+    const auto row = [&](int k, Mat2& d, Mat2& lower, Mat2& u_prev, Vec2& rhs, PassAcc& acc, auto side)
+        HOT_INLINE {
+      const Vec2 gap = residual_row(k, acc, std::true_type{}, side);
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       // A dL = -gap + sum_i sigma lift_i perp(end_i), with A_kj = sum over the bodies i of rows k and j of
@@ -479,8 +560,8 @@ void World::step_midpoint(double h) {
     // With rolling rows, row k's 3x3 blocks in the unknowns (dL_k, dt_b(k)) (rolling_newton above): its gap's and its
     // body b's angular residual's derivatives; a driven body b's turn is fixed (an identity row). A chain's first
     // body, when it moves, is eliminated: dt_a = (-rho_a + c_a perp(mid_a) . dL_k - couple_ab dt_b) / jac_a.
-    const auto row3 = [&](int k, Mat3& d, Coupling3& cp, Vec3& rhs) HOT_INLINE {
-      const Vec2 gap = residual_row(k, std::true_type{});
+    const auto row3 = [&](int k, Mat3& d, Coupling3& cp, Vec3& rhs, PassAcc& acc, auto side) HOT_INLINE {
+      const Vec2 gap = residual_row(k, acc, std::true_type{}, side);
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
       const double ha = ak ? 0.0 : h * m.alpha[r.a], hb = bk ? 0.0 : h * m.alpha[r.b];
@@ -515,23 +596,63 @@ void World::step_midpoint(double h) {
         rhs += (m.rho[r.a] * inv) * col;
       }
     };
+    // The Newton pass: each row's blocks built, factored and forward-substituted, in one pass or two halves.
+    const auto newton_pass = [&] {
+      const int rows = static_cast<int>(n);
+      if (split == 0) {
+        const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
+        const auto top3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[0], FromTop{}); };
+        lane[0].pivots +=
+            three ? m.newton3.factor_forward(rows, top3, m.dx) : newton_.factor_forward(rows, top, m.dlam);
+        return;
+      }
+      if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::true_type{}, BothSides{});
+      lanes_.run([&](int l) {
+        if (l == 0) {
+          const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
+          const auto top3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[0], FromTop{}); };
+          lane[0].pivots += three ? m.newton3.factor_down(split, top3, m.dx) : newton_.factor_down(split, top, m.dlam);
+        } else {
+          const auto bottom = [&](auto&&... a) HOT_INLINE { return row(a..., lane[1], FromBottom{}); };
+          const auto bottom3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[1], FromBottom{}); };
+          lane[1].pivots += three ? m.newton3.factor_up(split, rows, bottom3, m.dx)
+                                  : newton_.factor_up(split, rows, bottom, m.dlam);
+        }
+      });
+      lane[0].pivots += three ? m.newton3.meet(split, m.dx) : newton_.meet(split, m.dlam);
+    };
     // When this iterate is likely the answer (the last one was within a few orders of the tolerance, or the last
     // step's first guess was right), the residual alone is measured first, and the Newton blocks only if it falls
     // short: a pass with half the arithmetic instead of a full one. Either way the same values are computed.
     bool checked = false;
     if (expect_converged) {
-      for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, std::false_type{});
-      checked = !(std::sqrt(worst_gap2) > tol) && !(worst_rho > kRhoShare * tol);
-      if (!checked) worst_rho = worst_gap2 = largest_gap2 = 0;
+      if (split == 0) {
+        for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
+      } else {
+        if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::false_type{}, BothSides{});
+        lanes_.run([&](int l) {
+          if (l == 0)
+            for (int k = 0; k < split; ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
+          else
+            for (int k = static_cast<int>(n) - 1; k >= split; --k)
+              residual_row(k, lane[1], std::false_type{}, FromBottom{});
+        });
+      }
+      lane[0].merge(lane[1]);
+      checked = !(std::sqrt(lane[0].worst_gap2) > tol) && !(lane[0].worst_rho > kRhoShare * tol);
+      if (!checked) lane[0] = lane[1] = PassAcc{};
     }
     if (!checked) {
-      for (const int b : loose_bodies_) finish_body(b, -1, -1, worst_rho, std::true_type{});
-      if (n > 0)
-        st.regularised_pivots += three ? m.newton3.factor_forward(static_cast<int>(n), row3, m.dx)
-                                              : newton_.factor_forward(static_cast<int>(n), row, m.dlam);
+      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{}, FromTop{});
+      if (n > 0) newton_pass();
+      lane[0].merge(lane[1]);
+      lane[1] = PassAcc{};
     }
-    const double worst_gap = std::sqrt(worst_gap2);
-    st.residual = std::sqrt(largest_gap2);
+    st.regularised_pivots += lane[0].pivots;
+    lane[0].pivots = 0;
+    const double worst_rho = lane[0].worst_rho;
+    const double worst_gap = std::sqrt(lane[0].worst_gap2);
+    st.residual = std::sqrt(lane[0].largest_gap2);
     st.angular_residual = worst_rho;
     const bool stalled = worst_rho > kStall * last_rho;
     last_rho = worst_rho;
@@ -547,6 +668,7 @@ void World::step_midpoint(double h) {
       if (worst_gap <= kNearGap) {
         if (three) break;  // (the exact Newton already: rounding, or a tolerance out of reach, stops it)
         make_exact();
+        if (split > 0) m.newton3.resize(static_cast<int>(n)), m.dx.resize(n);
         limit = iteration + kExactIterations;
       } else if (!rescuing_ && far_rescues < 2) {
         if (far_rescues++ == 0)
@@ -570,53 +692,99 @@ void World::step_midpoint(double h) {
     // Back-substitution: each row's correction, and each body's as soon as its rows' are known. When the iterate was
     // close (as expect_converged), the corrections' sizes are tracked for newton_remainder, and what the step needs
     // if it ends there is found on the way (final_row): the largest impulse, and the bodies' mean velocities at the
-    // final impulses, as finish_body computes them (the rows run backwards: row k + 1's impulse is final by row k).
-    double lam_max2 = 0;
-    const auto final_row = [&](int k) HOT_INLINE {
+    // final impulses, as finish_body computes them. From the top the rows run backwards (row k + 1's impulse is final
+    // by row k); from the bottom, forwards (row k - 1's is).
+    const auto final_row = [&](int k, PassAcc& acc, auto side) HOT_INLINE {
       const Row& r = rows_[static_cast<size_t>(k)];
-      lam_max2 = std::max(lam_max2, m.lam[k].squaredNorm());
-      if (!bodies_[r.b].kinematic) mean_velocity(r.b, k, r.shares_next ? k + 1 : -1);
-      if (!r.link_prev && !bodies_[r.a].kinematic) mean_velocity(r.a, -1, k);
+      acc.lam_max2 = std::max(acc.lam_max2, m.lam[k].squaredNorm());
+      if constexpr (decltype(side)::value == FromTop::value) {
+        if (!bodies_[r.b].kinematic) mean_velocity(r.b, k, r.shares_next ? k + 1 : -1);
+        if (!r.link_prev && !bodies_[r.a].kinematic) mean_velocity(r.a, -1, k);
+      } else {
+        if (!bodies_[r.a].kinematic && r.a != skip) mean_velocity(r.a, r.link_prev ? k - 1 : -1, k);
+        if (!r.shares_next && !bodies_[r.b].kinematic) mean_velocity(r.b, k, -1);
+      }
+    };
+    // Row k's correction applied: its impulse (but row `split`'s, applied at the meeting) and the turns of the bodies
+    // that are final by then.
+    const auto done2 = [&](int k, auto track, PassAcc& acc, auto side) HOT_INLINE {
+      constexpr bool kTrack = decltype(track)::value;
+      const Row& r = rows_[static_cast<size_t>(k)];
+      if (split == 0 || k != split) m.lam[k] += m.dlam[k];
+      if constexpr (decltype(side)::value == FromTop::value) {
+        if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1, track, acc);
+        if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k, track, acc);
+      } else {
+        if (!bodies_[r.a].kinematic && r.a != skip) correct_body(r.a, r.link_prev ? k - 1 : -1, k, track, acc);
+        if (!r.shares_next && !bodies_[r.b].kinematic) correct_body(r.b, k, -1, track, acc);
+      }
+      if constexpr (kTrack) final_row(k, acc, side);
+    };
+    const auto done3 = [&](int k, auto track, PassAcc& acc, auto side) HOT_INLINE {
+      constexpr bool kTrack = decltype(track)::value;
+      constexpr bool kTop = decltype(side)::value == FromTop::value;
+      const Row& r = rows_[static_cast<size_t>(k)];
+      const Vec3& x = m.dx[k];
+      if (split == 0 || k != split) m.lam[k] += x.head<2>();
+      double dl = 0;
+      if constexpr (kTrack) dl = x.head<2>().cwiseAbs().sum();
+      const bool bk = bodies_[r.b].kinematic;
+      if (!r.link_prev && !bodies_[r.a].kinematic)
+        turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
+                      (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a], track, dl, acc);
+      if constexpr (kTop) {  // row k + 1's correction, the other of body b's rows, is known
+        double dl_next = 0;
+        if constexpr (kTrack)
+          if (r.shares_next) dl_next = m.dx[k + 1].head<2>().cwiseAbs().sum();
+        if (!bk) turn_by(r.b, x(2), track, dl + dl_next, acc);
+      } else {  // body b's turn waits for row k + 1 when it has one; body a's (row k - 1's b) is due now
+        if (!bk && !r.shares_next) turn_by(r.b, x(2), track, dl, acc);
+        if (r.link_prev && r.a != skip && !bodies_[r.a].kinematic) {
+          double dl_prev = 0;
+          if constexpr (kTrack) dl_prev = m.dx[k - 1].head<2>().cwiseAbs().sum();
+          turn_by(r.a, m.dx[k - 1](2), track, dl_prev + dl, acc);
+        }
+      }
+      if constexpr (kTrack) final_row(k, acc, side);
     };
     const auto update = [&](auto track) HOT_INLINE {
-      constexpr bool kTrack = decltype(track)::value;
-      if (n > 0 && three) {
-        m.newton3.backward(m.dx, [&](int k) HOT_INLINE {
-          const Row& r = rows_[static_cast<size_t>(k)];
-          const Vec3& x = m.dx[k];
-          m.lam[k] += x.head<2>();
-          // (the rows run backwards: row k + 1's correction, the other of body b's rows, is known)
-          double dl = 0, dl_next = 0;
-          if constexpr (kTrack) {
-            dl = x.head<2>().cwiseAbs().sum();
-            if (r.shares_next) dl_next = m.dx[k + 1].head<2>().cwiseAbs().sum();
-          }
-          const bool bk = bodies_[r.b].kinematic;
-          if (!r.link_prev && !bodies_[r.a].kinematic)
-            turn_by(r.a, (-m.rho[r.a] + m.spin_gain[r.a] * perp(m.mid_a[k]).dot(x.head<2>()) -
-                          (bk ? 0.0 : m.couple_ab[k] * x(2))) * m.inv_jac[r.a], track, dl);
-          if (!bk) turn_by(r.b, x(2), track, dl + dl_next);
-          if constexpr (kTrack) final_row(k);
-        });
+      if (n > 0 && split == 0) {
+        if (three)
+          m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); });
+        else
+          newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); });
       } else if (n > 0) {
-        newton_.backward(m.dlam, [&](int k) HOT_INLINE {
-          const Row& r = rows_[static_cast<size_t>(k)];
-          m.lam[k] += m.dlam[k];
-          if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1, track);
-          if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k, track);
-          if constexpr (kTrack) final_row(k);
+        // The shared body's turn needs row split's impulse final (lane 0 corrects it): applied first.
+        m.lam[split] += three ? Vec2(m.dx[split].head<2>()) : m.dlam[split];
+        lanes_.run([&](int l) {
+          if (l == 0) {
+            if (three)
+              m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); }, split);
+            else
+              newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); }, split);
+          } else {
+            if (three)
+              m.newton3.downward(split, m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[1], FromBottom{}); });
+            else
+              newton_.downward(split, m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[1], FromBottom{}); });
+          }
         });
       }
       for (const int b : loose_bodies_) {
-        correct_body(b, -1, -1, track);
-        if constexpr (kTrack) mean_velocity(b, -1, -1);
+        correct_body(b, -1, -1, track, lane[0]);
+        if constexpr (decltype(track)::value) mean_velocity(b, -1, -1);
       }
     };
-    const bool track = expect_converged && exact && !forced && (cf == 0 || three);
+    // lane[0] still holds this iterate's exact (a floored turn stiffness); the tracking starts afresh.
+    lane[0].dt_max = lane[0].cross_max = lane[0].lam_max2 = 0;
+    const bool track = expect_converged && lane[0].exact && !forced && (cf == 0 || three);
     if (track)
       update(std::true_type{});
     else
       update(std::false_type{});
+    lane[0].merge(lane[1]);
+    const bool exact = lane[0].exact;
+    const double dt_max = lane[0].dt_max, cross_max = lane[0].cross_max, lam_max2 = lane[0].lam_max2;
     ++st.iterations;
     // newton_remainder: after an exact Newton step what is left of the residual is the equations' second-order
     // remainder in the correction: the gaps and vbar are linear in the impulses, the levers are the Cayley map's of
@@ -659,21 +827,26 @@ void World::step_midpoint(double h) {
     const Levers v = levers(m.force_lever[i], m.t[b], m.kt[b]);
     m.force_work.push_back(af.over_step(t0, h).dot(h * (state_[b].v + m.vbar[b]) + (v.end - m.force_lever[i])));
   }
-  double work = 0, dissipated = 0;
-  for (size_t b = 0; b < nb; ++b) {
-    const Body& body = bodies_[b];
-    if (body.kinematic) continue;
-    BodyState& s = state_[b];
-    const double t = m.t[b];
-    const Vec2& vbar = m.vbar[b];
-    const double wbar = 2 * t * inv_h;
-    dissipated += h * (cl * body.mass * (s.v + vbar).squaredNorm() + m.beta[b] * wbar * wbar);
-    s.x += h * (s.v + vbar);
-    s.v += 2 * vbar;
-    s.w = 4 * t * inv_h - s.w;
-    s.q = (s.q * cayley(t)).renormalised();
-    s.th += turn_of(t);
-  }
+  double lane_dissipated[2] = {0, 0};
+  halves(nb, [&](size_t from, size_t to, int l) HOT_INLINE {
+    double d = 0;
+    for (size_t b = from; b < to; ++b) {
+      const Body& body = bodies_[b];
+      if (body.kinematic) continue;
+      BodyState& s = state_[b];
+      const double t = m.t[b];
+      const Vec2& vbar = m.vbar[b];
+      const double wbar = 2 * t * inv_h;
+      d += h * (cl * body.mass * (s.v + vbar).squaredNorm() + m.beta[b] * wbar * wbar);
+      s.x += h * (s.v + vbar);
+      s.v += 2 * vbar;
+      s.w = 4 * t * inv_h - s.w;
+      s.q = (s.q * cayley(t)).renormalised();
+      s.th += turn_of(t);
+    }
+    lane_dissipated[l] = d;
+  });
+  double work = 0, dissipated = split == 0 ? lane_dissipated[0] : lane_dissipated[0] + lane_dissipated[1];
   if (cf != 0)
     for (const Row& r : rows_) {
       const double wa = 2 * m.t[r.a] * inv_h, wb = 2 * m.t[r.b] * inv_h;
@@ -709,21 +882,26 @@ void World::step_midpoint(double h) {
     if (has_welds_) row_impulse_[k] = m.lam[k];
   };
   if (predicted) {
-    double worst2 = 0, largest2 = 0;
-    for (size_t k = 0; k < n; ++k) {
-      end_row(k);
-      const Row& r = rows_[k];
-      const BodyState& a = state_[r.a];
-      const BodyState& b = state_[r.b];
-      const Vec2 pa = a.x + a.q * r.ra, pb = b.x + b.q * r.rb;
-      Vec2 gap = pa - pb;
-      if (r.rolls) {
-        const Vec2 u = roll_direction(k, a, b);
-        gap += (2 * roll_[k].radius) * u;
-        m.roll_u0[k] = u;
+    const auto end_rows = [&](size_t from, size_t to, PassAcc& acc) HOT_INLINE {
+      for (size_t k = from; k < to; ++k) {
+        end_row(k);
+        const Row& r = rows_[k];
+        const BodyState& a = state_[r.a];
+        const BodyState& b = state_[r.b];
+        const Vec2 pa = a.x + a.q * r.ra, pb = b.x + b.q * r.rb;
+        Vec2 gap = pa - pb;
+        if (r.rolls) {
+          const Vec2 u = roll_direction(k, a, b);
+          gap += (2 * roll_[k].radius) * u;
+          m.roll_u0[k] = u;
+        }
+        count_gap(gap, pa, pb, acc);
       }
-      count_gap(gap, pa, pb, worst2, largest2);
-    }
+    };
+    lane[0] = lane[1] = PassAcc{};
+    halves(n, [&](size_t from, size_t to, int l) { end_rows(from, to, lane[l]); });
+    lane[0].merge(lane[1]);
+    const double worst2 = lane[0].worst_gap2, largest2 = lane[0].largest_gap2;
     final_gap = std::sqrt(worst2);
     st.residual = std::sqrt(largest2);
     m.roll_u0_version = state_version_;

@@ -20,6 +20,7 @@
 #pragma once
 
 #include "core/block_tridiag.hpp"
+#include "core/lanes.hpp"
 #include "core/geometry.hpp"
 
 #include <algorithm>
@@ -69,6 +70,9 @@ struct Options {
   // (velocities are not measured). Off: one step of h.
   bool adaptive = false;
   double error_tolerance = 1e-6;  // [m]
+  // Threads a step may use: 2 lets the midpoint step solve a long chain's two halves at once (midpoint.cpp,
+  // kSplitRows). The results are the same bits with 1 or 2.
+  int threads = 2;
 };
 
 // Prescribed motion of a kinematic part (a held block): pose, velocity and acceleration at time t.
@@ -585,6 +589,7 @@ class World {
     std::vector<Vec3> dx;
   };
   MidpointWork mid_;
+  Lanes lanes_;  // the midpoint step's second thread (Options::threads)
 
   // scratch, kept to avoid allocation in the step
   std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;

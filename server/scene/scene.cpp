@@ -121,6 +121,9 @@ constexpr std::array kKeys{
            .help = "hinge position error the solver drives below [m]"},
     KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "iterations per nonlinear solve (a midpoint solve still short is rescued: docs/model.md 3.1)"},
+    KeyDef{.name = "solver.threads", .kind = Kind::Integer, .range = between(1, 2),
+           .help = "threads a midpoint step may use: 2 solves a chain of 2048 hinges or more in two halves at once "
+                   "(the same bits as 1; docs/model.md 3.2)"},
     // The drags are explicit forces: at 1 ms a block stops within a step already at 1000 /s (3e5 fails the step),
     // and hinge friction above 0.4 N m s fails it for the shipped 25 g blocks.
     KeyDef{.name = "damping.linear", .kind = Kind::Number, .range = between(0, 1000),
@@ -705,6 +708,7 @@ void read_options(const Reader& r, Scene& s) {
   r.get("solver.kind", o.solver, &core::solver_from_string);
   r.get("solver.tolerance", o.tolerance);
   r.get("solver.max_iterations", o.max_iterations);
+  r.get("solver.threads", o.threads);
   if (r.find("sim.accuracy")) {
     // The preset sets its knobs; a knob given in the same place (the file, or --set) or a later one (--set over a
     // file's preset) wins over it, so `--set sim.accuracy=fast` overrides a scene file's integrator.
@@ -913,6 +917,7 @@ std::string live_settings(const Scene& s) {
   line("solver.kind", core::to_string(o.solver));
   line("solver.tolerance", format_number(o.tolerance));
   line("solver.max_iterations", std::to_string(o.max_iterations));
+  line("solver.threads", std::to_string(o.threads));
   line("damping.linear", format_number(o.linear_damping));
   line("damping.angular", format_number(o.angular_damping));
   line("damping.hinge", format_number(o.hinge_friction));

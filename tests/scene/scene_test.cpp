@@ -565,7 +565,7 @@ std::vector<std::string> help_keys() {
 
 TEST(Help, OneLinePerKey) {
   const auto keys = help_keys();
-  EXPECT_EQ(keys.size(), 42u);
+  EXPECT_EQ(keys.size(), 43u);
   EXPECT_EQ(keys.front(), "scene.name");
   const std::string help = keys_help();
   EXPECT_NE(help.find("ladder.blocks"), std::string::npos);
