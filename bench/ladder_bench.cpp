@@ -22,7 +22,9 @@
 // (the last step's of each advance), the steps that ended on Newton's remainder bound instead of a measuring pass
 // (bound_ends/step, docs/model.md section 3.1), the largest hinge error after the run [m] and the simulated time
 // covered.
-// Run: build/bench/ladder-bench [--benchmark_filter=...]; docs/benchmarks.md records the figures.
+// Run: build/bench/ladder-bench [--threads 1|2] [--benchmark_filter=...]; docs/benchmarks.md records the figures.
+// --threads sets solver.threads (default 2): a chain of 2048 hinges or more is stepped on two threads with 2
+// (docs/model.md section 3.2).
 #include "core/chain3d.hpp"
 #include "free_chain.hpp"
 #include "ladder/ladder.hpp"
@@ -30,7 +32,9 @@
 
 #include <benchmark/benchmark.h>
 
+#include <cstdio>
 #include <memory>
+#include <string>
 #include <stdexcept>
 
 namespace {
@@ -66,8 +70,14 @@ std::unique_ptr<model::Ladder> ladder(int n, bool logic, bool fast_preset = fals
   return std::make_unique<model::Ladder>(spec, fast_preset ? fast(core::Options{}) : core::Options{});
 }
 
+// --threads N (Options::threads; the default is 2): the threads each step may use.
+int threads = core::Options{}.threads;
+
 void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   const int n = static_cast<int>(state.range(0));
+  core::Options o = l->world().options();
+  o.threads = threads;
+  l->set_options(o);
   if (tip) l->tip();
   double iterations = 0, bound_ends = 0;
   for (auto _ : state) {
@@ -298,4 +308,32 @@ BENCHMARK(FreeChain3DGravity)->Arg(10)->Arg(100)->Iterations(1500)->Unit(benchma
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  // --threads N, taken out before Google Benchmark reads its own flags.
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    std::string value;
+    if (arg == "--help" || arg == "-h")
+      std::printf("ladder-bench: block-steps per second of the simulation core (docs/benchmarks.md).\n"
+                  "  --threads 1|2   solver.threads for every workload (default 2: a chain of 2048 hinges or more\n"
+                  "                  is stepped on two threads; docs/model.md section 3.2)\n"
+                  "Google Benchmark's own flags:\n");
+    if (arg == "--threads" || arg.rfind("--threads=", 0) == 0) {
+      value = arg == "--threads" ? (i + 1 < argc ? argv[++i] : "") : arg.substr(10);
+      if (value != "1" && value != "2") {
+        std::fprintf(stderr, "ladder-bench: --threads must be 1 or 2 (got '%s')\n", value.c_str());
+        return 2;
+      }
+      threads = value == "1" ? 1 : 2;
+    } else {
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
