@@ -13,10 +13,13 @@
 namespace ladder::core {
 
 namespace {
-// How long the helper spins for the next job before it sleeps: longer than the serial stretches between a step's
-// parallel passes (a few microseconds to a few tens), so that a step pays one futex wake-up at most; short enough
-// that a server's idle helper leaves the processor to its publishing threads between ticks.
-constexpr auto kSpin = std::chrono::microseconds(50);
+// How long the helper spins for the next job before it sleeps: longer than the gap between two steps at ladderd's
+// 1 kHz, so that a chain stepped without pause keeps it awake. A sleeping helper is slow to come back: on the
+// 2-vCPU VM of docs/benchmarks.md a futex wake-up took 20 to 60 us after 0.1 ms asleep but 2 to 3 ms after 2 ms
+// (the idle virtual processor is descheduled), longer than a step. With a 50 us spin the helper slept between the
+// server's ticks and the caller ran both halves of most passes itself (docs/benchmarks.md, the fifth round). The
+// cost: while a long chain runs, the helper holds its processor; a paused server's sleeps after 1 ms.
+constexpr auto kSpin = std::chrono::microseconds(1000);
 }  // namespace
 
 Lanes::~Lanes() {
@@ -56,6 +59,16 @@ void Lanes::helper_loop() {
     }
     done_.store(seen, std::memory_order_release);
   }
+}
+
+void Lanes::wake() {
+  if (!parallel_ || !helper_.joinable() || !sleeping_.load()) return;
+  // An empty ticket, claimed before it is posted (only this thread posts): the helper wakes, finds it taken (as when
+  // run()'s caller runs lane 1 itself) and spins for the next.
+  const unsigned ticket = posted_.load() + 1;
+  claimed_.store(ticket);
+  posted_.store(ticket);
+  posted_.notify_one();
 }
 
 void Lanes::run_erased(Fn fn, void* job) {

@@ -4,11 +4,12 @@
 // helper exists: with one thread, run() calls job(0) and then job(1) on the caller, and the two lanes write disjoint
 // data, so the results are the same bits.
 //
-// The helper is started on the first parallel run() and waits between jobs by spinning a little (a step's passes
-// follow each other within microseconds) and then sleeping on a futex (std::atomic::wait), so an idle server costs
-// no processor. Lane 1 is run by whichever thread claims it first: when the helper is slow to wake (asleep, or its
-// processor taken by another thread), the caller runs it after lane 0, so a busy machine costs at most the time of
-// one thread. A Lanes copied or moved into place starts without a helper (a World returned by value, a snapshot).
+// The helper is started on the first parallel run() and waits between jobs by spinning for up to 1 ms (longer than
+// the gap between two steps at 1 kHz: lanes.cpp, kSpin) and then sleeping on a futex (std::atomic::wait), so a
+// paused server costs no processor. Lane 1 is run by whichever thread claims it first: when the helper is slow to
+// wake (asleep, or its processor taken by another thread), the caller runs it after lane 0, so a busy machine costs
+// at most the time of one thread. A Lanes copied or moved into place starts without a helper (a World returned by
+// value, a snapshot).
 #pragma once
 
 #include <atomic>
@@ -28,6 +29,11 @@ class Lanes {
   // Whether run() may use a helper thread (the results do not depend on it).
   void set_parallel(bool parallel) { parallel_ = parallel; }
   bool parallel() const { return parallel_; }
+
+  // Work is coming: a sleeping helper is woken now, so that the time it takes to wake (tens of microseconds on an
+  // idle machine, milliseconds on a busy one) overlaps the caller's serial work before its next run(). It then
+  // spins for the next job as after one. Costs one atomic load when the helper is awake or absent.
+  void wake();
 
   // job(0) on the calling thread and job(1) on the helper (both on the caller when not parallel). An exception from
   // either is rethrown here, after both have finished.
@@ -52,7 +58,7 @@ class Lanes {
   Fn fn_ = nullptr;
   void* job_ = nullptr;
   std::exception_ptr error_;
-  std::atomic<unsigned> posted_{0};     // jobs posted (the helper runs each new one)
+  std::atomic<unsigned> posted_{0};     // jobs posted (the helper runs each new one it claims; wake() posts none)
   std::atomic<unsigned> claimed_{0};    // the last job claimed, by the helper or by run()'s caller
   std::atomic<unsigned> done_{0};       // the last job the helper finished
   std::atomic<bool> sleeping_{false};   // the helper waits on posted_'s futex: run() must wake it

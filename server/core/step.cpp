@@ -205,6 +205,7 @@ void World::kick_drift(double h_kick, double h) {
 void World::step(double h, bool adaptive, Snapshot* before) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step: the time step must be a positive number");
   ensure_built();
+  wake_threads();
   const bool whole = options_.adaptive && adaptive;
   // One reduced step leaves the state it started from in other_state_; anything else needs a copy first.
   const bool swapped = before && !whole && options_.integrator == Integrator::Reduced && reduced_applies();

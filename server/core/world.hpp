@@ -237,6 +237,9 @@ class World {
   // With `before`, the state before the step is left there, as save() would have returned it, so that a caller can
   // take the step back with restore(): the reduced integrator hands over the buffer it stepped from, no copy.
   void step(double h, bool adaptive = true, Snapshot* before = nullptr);
+  // A step is coming: the midpoint step's second thread (Options::threads), if it sleeps, starts waking now, while
+  // the caller does its own work first (step() calls it too, before its snapshot). Changes no result.
+  void wake_threads() { lanes_.wake(); }
   double time() const { return t_; }
   const StepStats& last_step() const { return stats_; }
   // The adaptive step's next trial sub-step [s] (Options::adaptive), 0 before the first.

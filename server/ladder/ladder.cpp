@@ -478,6 +478,7 @@ void Ladder::advance(double h) {
 }
 
 void Ladder::advance_by(double h) {
+  world_.wake_threads();  // (its wake-up overlaps the energy and hinge measures before the step)
   step_h_ = h;
   piece_work_ = 0;
   if (!spec_.logic) {

@@ -13,8 +13,8 @@
 namespace ladder::core {
 namespace {
 
-// Many short jobs back to back (the helper spinning) and some after a pause (the helper asleep on its futex): each
-// lane's work is done once per run and is visible to the caller when run() returns.
+// Many short jobs back to back (the helper spinning), some after a pause (the helper asleep on its futex), some after
+// a wake(): each lane's work is done once per run and is visible to the caller when run() returns.
 TEST(Lanes, EachLaneRunsOncePerRunAndIsDoneWhenRunReturns) {
   for (const bool parallel : {false, true}) {
     Lanes lanes;
@@ -23,6 +23,11 @@ TEST(Lanes, EachLaneRunsOncePerRunAndIsDoneWhenRunReturns) {
     long expected = 0;
     for (int run = 0; run < 20000; ++run) {
       if (run % 5000 == 4999) std::this_thread::sleep_for(std::chrono::milliseconds(2));  // let the helper sleep
+      if (run % 3 == 0) lanes.wake();  // (every few runs, asleep or not: it runs nothing)
+      if (run % 2000 == 1999) {  // woken, then let sleep again before the run
+        lanes.wake();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
       lanes.run([&](int lane) {
         const size_t from = lane == 0 ? 0 : data.size() / 2, to = lane == 0 ? data.size() / 2 : data.size();
         for (size_t i = from; i < to; ++i) data[i] += static_cast<long>(i) + run;
