@@ -141,11 +141,10 @@ constexpr std::array<double, 5> kRescueSecond = {0.25, 0.5, 0.7, 0.85, 0.95};
 constexpr double kRemainderShare = 1e-2;
 constexpr double kSpinRemainderShare = 0.25;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-// A chain of at least this many rows is solved in two halves, one from each end (BlockTridiag's twisted use), on two
-// threads when the World may use them (Options::threads): each Newton pass then takes about half the time. Shorter
-// ones gain less than a hand-over costs. The halves are the same whether or not they run concurrently, so a step's
-// bits do not depend on the threads; they differ from the one-sided elimination's in rounding only.
-constexpr int kSplitRows = 2048;
+// A chain of at least World::kSplitRows rows is solved in two halves, one from each end (BlockTridiag's twisted use),
+// on two threads when the World may use them (Options::threads): each Newton pass then takes about half the time.
+// Shorter ones gain less than a hand-over costs. The halves are the same whether or not they run concurrently, so a
+// step's bits do not depend on the threads; they differ from the one-sided elimination's in rounding only.
 
 namespace {
 // What a pass over the rows measures (per lane: the two halves of a split pass keep their own, merged after).
@@ -219,14 +218,11 @@ void World::step_midpoint(double h) {
   m.vfree.resize(nb);
   m.kt.resize(nb);  // 1 / (1 + t^2)
   const double quarter_h = 0.25 * h, half_h = 0.5 * h, inv_damped = 1 / (2 + h * cl), inv_h = 1 / h;
-  // A long chain's passes run in two halves (kSplitRows), and so do the step's loops over the bodies and the rows:
-  // halves(count, fn) calls fn(from, to, lane) for [0, count / 2) and [count / 2, count), or fn(0, count, 0).
-  const int split = static_cast<int>(n) >= kSplitRows ? static_cast<int>(n) / 2 : 0;
+  // A long chain's passes run in two halves (World::kSplitRows), and so do the step's loops over the bodies and the
+  // rows (in_halves).
+  const int split = split_chain() ? static_cast<int>(n) / 2 : 0;
   lanes_.set_parallel(options_.threads >= 2);
-  const auto halves = [&](size_t count, auto&& fn) {
-    if (split == 0) return fn(size_t{0}, count, 0);
-    lanes_.run([&](int l) { fn(l == 0 ? size_t{0} : count / 2, l == 0 ? count / 2 : count, l); });
-  };
+  const auto halves = [&](size_t count, auto&& fn) { in_halves(count, fn); };
   double lane_max[2] = {0, 0};  // the largest h / (4 I) times the radius of gyration (newton_remainder), per lane
   halves(nb, [&](size_t from, size_t to, int l) HOT_INLINE {
     for (size_t b = from; b < to; ++b) {
@@ -321,9 +317,9 @@ void World::step_midpoint(double h) {
   // What this iteration's Newton step was (newton_remainder) is gathered per lane (PassAcc): its Jacobian exact (no
   // turn stiffness floored, no correction limited) and, when it is tracked, its largest turn correction and the
   // largest product of a body's turn correction and its rows' impulse corrections (their 1-norms).
-  // A long chain's passes are split (kSplitRows): rows [0, split) from the top on lane 0, [split, n) from the bottom on
-  // lane 1. The body the two middle rows share (`skip`, when it moves) is finished before the halves start and
-  // corrected by lane 0, so that each lane writes only its own rows' and bodies' terms.
+  // A long chain's passes are split (World::kSplitRows): rows [0, split) from the top on lane 0, [split, n) from the
+  // bottom on lane 1. The body the two middle rows share (`skip`, when it moves) is finished before the halves start
+  // and corrected by lane 0, so that each lane writes only its own rows' and bodies' terms.
   int skip = -1;
   if (split > 0) {
     const Row& r = rows_[static_cast<size_t>(split)];

@@ -38,27 +38,38 @@ double World::kinetic_energy() const {
 Energy World::energy() const {
   if (energy_version_ == motion_version_ && energy_structure_ == structure_) return energy_;
   const double gx = options_.gravity.x(), gy = options_.gravity.y();
-  double k[2] = {0, 0}, p[2] = {0, 0}, zero = 0;
-  const auto add = [&](size_t b, int i) __attribute__((always_inline)) {
-    const BodyState& s = state_[b];
-    if (bodies_[b].kinematic) {
-      zero += 0.0 * (s.x.x() + s.x.y() + s.v.x() + s.v.y() + s.w);
-    } else {
-      const Body& body = bodies_[b];
-      k[i] += body.mass * (s.v.x() * s.v.x() + s.v.y() * s.v.y()) + body.inertia * s.w * s.w;
-      p[i] -= body.mass * (gx * s.x.x() + gy * s.x.y());
-    }
-    zero += 0.0 * (s.th + s.q.c + s.q.s);
+  struct Sums {
+    double k[2] = {0, 0}, p[2] = {0, 0}, zero = 0;
   };
-  const size_t n = bodies_.size();
-  size_t b = 0;
-  for (; b + 1 < n; b += 2) {
-    add(b, 0);
-    add(b + 1, 1);
-  }
-  if (b < n) add(b, 0);
-  energy_ = {0.5 * (k[0] + k[1]), p[0] + p[1]};
-  energy_.finite = std::isfinite(energy_.kinetic) && std::isfinite(energy_.potential) && zero == 0 &&
+  Sums lane[2];
+  // Per half of a long chain (in_halves), with two sums each (the even and odd bodies of the half).
+  in_halves(bodies_.size(), [&](size_t from, size_t to, int l) {
+    Sums& sum = lane[l];
+    const auto add = [&](size_t b, int i) __attribute__((always_inline)) {
+      const BodyState& s = state_[b];
+      if (bodies_[b].kinematic) {
+        sum.zero += 0.0 * (s.x.x() + s.x.y() + s.v.x() + s.v.y() + s.w);
+      } else {
+        const Body& body = bodies_[b];
+        sum.k[i] += body.mass * (s.v.x() * s.v.x() + s.v.y() * s.v.y()) + body.inertia * s.w * s.w;
+        sum.p[i] -= body.mass * (gx * s.x.x() + gy * s.x.y());
+      }
+      sum.zero += 0.0 * (s.th + s.q.c + s.q.s);
+    };
+    size_t b = from;
+    for (; b + 1 < to; b += 2) {
+      add(b, 0);
+      add(b + 1, 1);
+    }
+    if (b < to) add(b, 0);
+  });
+  const Sums& a = lane[0];
+  const Sums& b = lane[1];
+  if (split_chain())
+    energy_ = {0.5 * ((a.k[0] + a.k[1]) + (b.k[0] + b.k[1])), (a.p[0] + a.p[1]) + (b.p[0] + b.p[1])};
+  else
+    energy_ = {0.5 * (a.k[0] + a.k[1]), a.p[0] + a.p[1]};
+  energy_.finite = std::isfinite(energy_.kinetic) && std::isfinite(energy_.potential) && a.zero + b.zero == 0 &&
                    std::isfinite(t_);
   energy_version_ = motion_version_;
   energy_structure_ = structure_;

@@ -210,12 +210,22 @@ void World::step(double h, bool adaptive, Snapshot* before) {
   // One reduced step leaves the state it started from in other_state_; anything else needs a copy first.
   const bool swapped = before && !whole && options_.integrator == Integrator::Reduced && reduced_applies();
   if (before) {
-    if (!swapped) before->bodies = state_;
     before->forces = forces_;
     before->t = t_;
     before->structure = structure_;
     before->adaptive_h = adaptive_h_;
-    before->hinge_forces = hinge_force_;
+    if (split_chain()) {  // in the step's halves (in_halves)
+      if (!swapped) before->bodies.resize(state_.size());
+      before->hinge_forces.resize(hinge_force_.size());
+      in_halves(state_.size(), [&](size_t from, size_t to, int) {
+        if (!swapped) std::copy(state_.begin() + from, state_.begin() + to, before->bodies.begin() + from);
+        const size_t rows = hinge_force_.size(), r0 = rows * from / state_.size(), r1 = rows * to / state_.size();
+        std::copy(hinge_force_.begin() + r0, hinge_force_.begin() + r1, before->hinge_forces.begin() + r0);
+      });
+    } else {
+      if (!swapped) before->bodies = state_;
+      before->hinge_forces = hinge_force_;
+    }
   }
   if (whole)
     step_adaptive(h);

@@ -592,7 +592,21 @@ class World {
     std::vector<Vec3> dx;
   };
   MidpointWork mid_;
-  Lanes lanes_;  // the midpoint step's second thread (Options::threads)
+
+  // A chain of at least kSplitRows rows has the midpoint step's passes solved in two halves (midpoint.cpp), and its
+  // per-body loops run in the same halves: the step's, the snapshot's copy and the energy's, so that each half's data
+  // stays with the thread that works on it. in_halves(count, fn) calls fn(from, to, lane) for [0, count / 2) and
+  // [count / 2, count), on two threads when Options::threads allows, or fn(0, count, 0) for a shorter chain. What it
+  // computes depends on the chain's length only, never on the threads.
+  static constexpr int kSplitRows = 2048;
+  bool split_chain() const { return static_cast<int>(rows_.size()) >= kSplitRows; }
+  template <class Fn>
+  void in_halves(size_t count, Fn&& fn) const {
+    if (!split_chain()) return fn(size_t{0}, count, 0);
+    lanes_.set_parallel(options_.threads >= 2);
+    lanes_.run([&](int l) { fn(l == 0 ? size_t{0} : count / 2, l == 0 ? count / 2 : count, l); });
+  }
+  mutable Lanes lanes_;  // the second thread (Options::threads)
 
   // scratch, kept to avoid allocation in the step
   std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;
