@@ -70,8 +70,8 @@ struct Options {
   // (velocities are not measured). Off: one step of h.
   bool adaptive = false;
   double error_tolerance = 1e-6;  // [m]
-  // Threads a step may use: 2 lets the midpoint step solve a long chain's two halves at once (midpoint.cpp,
-  // kSplitRows). The results are the same bits with 1 or 2.
+  // Threads a step may use: 2 lets the midpoint step solve a long chain's two halves at once (World::kSplitRows,
+  // docs/model.md section 3.2). The results are the same bits with 1 or 2.
   int threads = 2;
 };
 
