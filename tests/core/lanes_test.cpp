@@ -22,11 +22,12 @@ TEST(Lanes, EachLaneRunsOncePerRunAndIsDoneWhenRunReturns) {
     std::vector<long> data(2000, 0);
     long expected = 0;
     for (int run = 0; run < 20000; ++run) {
-      if (run % 5000 == 4999) std::this_thread::sleep_for(std::chrono::milliseconds(2));  // let the helper sleep
+      // (the helper spins 1 ms before it sleeps: lanes.cpp, kSpin)
+      if (run % 5000 == 4999) std::this_thread::sleep_for(std::chrono::milliseconds(3));  // let the helper sleep
       if (run % 3 == 0) lanes.wake();  // (every few runs, asleep or not: it runs nothing)
       if (run % 2000 == 1999) {  // woken, then let sleep again before the run
         lanes.wake();
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        std::this_thread::sleep_for(std::chrono::milliseconds(3));
       }
       lanes.run([&](int lane) {
         const size_t from = lane == 0 ? 0 : data.size() / 2, to = lane == 0 ? data.size() / 2 : data.size();
