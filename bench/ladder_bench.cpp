@@ -22,7 +22,8 @@
 // (the last step's of each advance), the steps that ended on Newton's remainder bound instead of a measuring pass
 // (bound_ends/step, docs/model.md section 3.1), the largest hinge error after the run [m] and the simulated time
 // covered.
-// Run: build/bench/ladder-bench [--threads 1|2] [--benchmark_filter=...]; docs/benchmarks.md records the figures.
+// Run: build/bench/ladder-bench [--threads 1|2] [--tolerance M] [--benchmark_filter=...]; docs/benchmarks.md records
+// the figures.
 // --threads sets solver.threads (default 2): a chain of 2048 hinges or more is stepped on two threads with 2
 // (docs/model.md section 3.2).
 #include "core/chain3d.hpp"
@@ -32,7 +33,9 @@
 
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <stdexcept>
@@ -72,11 +75,14 @@ std::unique_ptr<model::Ladder> ladder(int n, bool logic, bool fast_preset = fals
 
 // --threads N (Options::threads; the default is 2): the threads each step may use.
 int threads = core::Options{}.threads;
+// --tolerance M (Options::tolerance, solver.tolerance), or 0: each workload's own.
+double tolerance = 0;
 
 void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   const int n = static_cast<int>(state.range(0));
   core::Options o = l->world().options();
   o.threads = threads;
+  if (tolerance > 0) o.tolerance = tolerance;
   l->set_options(o);
   if (tip) l->tip();
   double iterations = 0, bound_ends = 0;
@@ -309,7 +315,7 @@ BENCHMARK(FreeChain3DGravity)->Arg(10)->Arg(100)->Iterations(1500)->Unit(benchma
 }  // namespace
 
 int main(int argc, char** argv) {
-  // --threads N, taken out before Google Benchmark reads its own flags.
+  // --threads N and --tolerance M, taken out before Google Benchmark reads its own flags.
   int kept = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -318,6 +324,8 @@ int main(int argc, char** argv) {
       std::printf("ladder-bench: block-steps per second of the simulation core (docs/benchmarks.md).\n"
                   "  --threads 1|2   solver.threads for every workload (default 2: a chain of 2048 hinges or more\n"
                   "                  is stepped on two threads; docs/model.md section 3.2)\n"
+                  "  --tolerance M   solver.tolerance in metres for every workload (default: each workload's own,\n"
+                  "                  1e-12 for the defaults; docs/benchmarks.md, the sixth round)\n"
                   "Google Benchmark's own flags:\n");
     if (arg == "--threads" || arg.rfind("--threads=", 0) == 0) {
       value = arg == "--threads" ? (i + 1 < argc ? argv[++i] : "") : arg.substr(10);
@@ -326,6 +334,16 @@ int main(int argc, char** argv) {
         return 2;
       }
       threads = value == "1" ? 1 : 2;
+    } else if (arg == "--tolerance" || arg.rfind("--tolerance=", 0) == 0) {
+      value = arg == "--tolerance" ? (i + 1 < argc ? argv[++i] : "") : arg.substr(12);
+      char* end = nullptr;
+      const double m = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || !std::isfinite(m) || !(m > 0)) {
+        std::fprintf(stderr, "ladder-bench: --tolerance must be a positive number of metres (got '%s')\n",
+                     value.c_str());
+        return 2;
+      }
+      tolerance = m;
     } else {
       argv[kept++] = argv[i];
     }
