@@ -319,23 +319,32 @@ int main(int argc, char** argv) {
   int kept = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    // Whether arg is --name (its value the next argument) or --name=value; the value goes to `value`.
     std::string value;
+    const auto flag = [&](const std::string& name) {
+      if (arg == name) {
+        value = i + 1 < argc ? argv[++i] : "";
+        return true;
+      }
+      if (arg.rfind(name + "=", 0) != 0) return false;
+      value = arg.substr(name.size() + 1);
+      return true;
+    };
     if (arg == "--help" || arg == "-h")
       std::printf("ladder-bench: block-steps per second of the simulation core (docs/benchmarks.md).\n"
                   "  --threads 1|2   solver.threads for every workload (default 2: a chain of 2048 hinges or more\n"
                   "                  is stepped on two threads; docs/model.md section 3.2)\n"
                   "  --tolerance M   solver.tolerance in metres for every workload (default: each workload's own,\n"
                   "                  1e-12 for the defaults; docs/benchmarks.md, the sixth round)\n"
+                  "  (Neither reaches FreeChain2D*/FreeChain3D*, which compare the two models at fixed settings.)\n"
                   "Google Benchmark's own flags:\n");
-    if (arg == "--threads" || arg.rfind("--threads=", 0) == 0) {
-      value = arg == "--threads" ? (i + 1 < argc ? argv[++i] : "") : arg.substr(10);
+    if (flag("--threads")) {
       if (value != "1" && value != "2") {
         std::fprintf(stderr, "ladder-bench: --threads must be 1 or 2 (got '%s')\n", value.c_str());
         return 2;
       }
       threads = value == "1" ? 1 : 2;
-    } else if (arg == "--tolerance" || arg.rfind("--tolerance=", 0) == 0) {
-      value = arg == "--tolerance" ? (i + 1 < argc ? argv[++i] : "") : arg.substr(12);
+    } else if (flag("--tolerance")) {
       char* end = nullptr;
       const double m = std::strtod(value.c_str(), &end);
       if (value.empty() || *end != '\0' || !std::isfinite(m) || !(m > 0)) {
