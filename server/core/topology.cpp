@@ -400,12 +400,15 @@ void World::rebuild() {
   has_welds_ = std::any_of(joints_.begin(), joints_.end(), [](const Joint& j) { return j.kind == JointKind::Weld; });
   row_impulse_.assign(rows_.size(), Vec2::Zero());
   hinge_force_.assign(rows_.size(), Vec2::Zero());
+  hinge_force_1_.assign(rows_.size(), Vec2::Zero());
+  hinge_force_2_.assign(rows_.size(), Vec2::Zero());
   for (size_t k = 0; k < rows_.size(); ++k) {
     const Joint& jt = joints_[static_cast<size_t>(rows_[k].joint)];
     const auto it = kept_force.find({jt.pa, jt.pb});
     if (it == kept_force.end()) continue;
     hinge_force_[k] = particles_[jt.pa].part != rows_[k].part_a ? Vec2(-it->second) : it->second;
   }
+  force_steps_ = std::min(force_steps_, 1);  // the older forces are gone
   ++structure_;
   mark_state_changed();
   factor_version_ = 0;

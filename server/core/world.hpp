@@ -135,7 +135,11 @@ struct Snapshot {
   double t = 0;
   std::uint64_t structure = 0;
   double adaptive_h = 0;  // the adaptive step's next trial sub-step: a redone step chooses the same sub-steps
-  std::vector<Vec2> hinge_forces;  // the midpoint step's first guess: a redone step starts its solve from the same one
+  // The midpoint step's first guess: a redone step starts its solve from the same one (World::hinge_force_ and its
+  // history).
+  std::vector<Vec2> hinge_forces, hinge_forces_1, hinge_forces_2;
+  int force_steps = 0;
+  double force_step_h = 0;
 };
 
 // Per-step solver figures, for statistics and warnings.
@@ -524,11 +528,15 @@ class World {
   // step's anchors; every row while a weld exists, else the rows with a kinematic body only), per body the state
   // at the start of the step, and the step length.
   std::vector<Vec2> row_impulse_;
-  // The midpoint step's mean hinge forces over the last step [N] (its impulses over h), per row: the next step's first
-  // guess, which saves it Newton iterations wherever the forces change little from step to step. Saved in snapshots,
-  // so that a redone step, a re-simulation and a resumed log (a re-run from the start) take the same bits; carried
-  // across a rebuild for the hinges that remain, zero for a new one.
-  std::vector<Vec2> hinge_force_;
+  // The midpoint step's mean hinge forces over the last step [N] (its impulses over h), per row, and over the two
+  // steps before it: the next step's first guess, which saves it Newton iterations wherever the forces change little
+  // from step to step (midpoint.cpp, first_force). Saved in snapshots, so that a redone step, a re-simulation and a
+  // resumed log (a re-run from the start) take the same bits. The last step's are carried across a rebuild for the
+  // hinges that remain, zero for a new one; the older two are not (force_steps_ starts again at 1). The three are
+  // always the same length.
+  std::vector<Vec2> hinge_force_, hinge_force_1_, hinge_force_2_;
+  int force_steps_ = 0;      // consecutive midpoint steps of force_step_h_ behind those forces, at most 3
+  double force_step_h_ = 0;  // their length [s]
   std::vector<BodyState> step_start_;
   std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
