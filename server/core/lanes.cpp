@@ -3,6 +3,8 @@
 
 #include <chrono>
 
+#include "core/fp_mode.hpp"
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define LADDER_PAUSE() _mm_pause()
@@ -53,6 +55,7 @@ void Lanes::helper_loop() {
     unsigned expected = seen - 1;  // the job is run by whoever claims it first: this thread or run()'s caller
     if (!claimed_.compare_exchange_strong(expected, seen)) continue;
     try {
+      if (fp_mode() != mode_) set_fp_mode(mode_);
       fn_(job_, 1);
     } catch (...) {
       error_ = std::current_exception();
@@ -75,6 +78,7 @@ void Lanes::run_erased(Fn fn, void* job) {
   if (!helper_.joinable()) helper_ = std::thread([this] { helper_loop(); });
   fn_ = fn;
   job_ = job;
+  mode_ = fp_mode();
   error_ = nullptr;
   const unsigned ticket = posted_.fetch_add(1) + 1;
   if (sleeping_.load()) posted_.notify_one();

@@ -57,6 +57,7 @@ class Lanes {
   std::thread helper_;
   Fn fn_ = nullptr;
   void* job_ = nullptr;
+  unsigned mode_ = 0;  // the poster's floating-point mode (fp_mode.hpp), which the job runs in
   std::exception_ptr error_;
   std::atomic<unsigned> posted_{0};     // jobs posted (the helper runs each new one it claims; wake() posts none)
   std::atomic<unsigned> claimed_{0};    // the last job claimed, by the helper or by run()'s caller

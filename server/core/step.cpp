@@ -16,6 +16,7 @@
 // (euler, rk4), reduced.cpp and midpoint.cpp. This file holds what they share: forces, drives, the fixed and adaptive
 // steps, the work of a step, snapshots and impulses.
 #include "core/world.hpp"
+#include "core/fp_mode.hpp"
 #include "core/hot_inline.hpp"
 
 #include <algorithm>
@@ -204,6 +205,7 @@ void World::kick_drift(double h_kick, double h) {
 
 void World::step(double h, bool adaptive, Snapshot* before) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("step: the time step must be a positive number");
+  const FlushSubnormals flush;  // (fp_mode.hpp)
   ensure_built();
   wake_threads();
   const bool whole = options_.adaptive && adaptive;

@@ -1,6 +1,7 @@
 // The engine against closed-form physics: free fall, the compound pendulum's period, energy conservation,
 // momentum conservation through restructuring, exact round trips, and refusals.
 #include "core/world.hpp"
+#include "core/fp_mode.hpp"
 #include "test_blocks.hpp"
 
 #include <gtest/gtest.h>
@@ -66,6 +67,28 @@ TEST(World, FreeFallIsExactForRK4AndFirstOrderForSymplecticEuler) {
     }
     EXPECT_NEAR(world.part_angle(part), 0.3 + 2.0 * t, 1e-12);
   }
+}
+
+// A step runs with subnormal numbers flushed to zero (core/fp_mode.hpp: on a long chain they cost 2x the step) and
+// gives the caller back its own mode. A free body whose velocity and spin are subnormal (1e-310) stops: read as zero,
+// they move it by nothing; without the flush its spin would stay near 1e-310 (w1 = 4 t / h - w0 with t = h w0 / 2).
+TEST(World, AStepFlushesSubnormalsAndRestoresTheCallersMode) {
+  if (kFlushSubnormals == 0) GTEST_SKIP() << "the flush is x86-64's (MXCSR)";
+  Options opt;
+  opt.gravity = Vec2::Zero();
+  World world(opt);
+  const double tiny = 1e-310;
+  ASSERT_EQ(std::fpclassify(tiny), FP_SUBNORMAL);
+  const int part = world.add_part(block(Vec2(0.5, 0.25), 0.0, Vec2(tiny, 0), tiny));
+  const unsigned control = ~0x3fu;  // MXCSR's control bits (its low six are the sticky exception flags)
+  const unsigned mode = fp_mode() & control;
+  ASSERT_EQ(mode & kFlushSubnormals, 0u);  // the caller's: subnormals kept
+  world.step(1e-3);
+  EXPECT_EQ(fp_mode() & control, mode);
+  EXPECT_EQ(world.part_omega(part), 0.0);
+  EXPECT_EQ(world.part_velocity(part).x(), 0.0);
+  EXPECT_EQ(world.part_position(part).x(), 0.5);
+  EXPECT_EQ(std::fpclassify(tiny * 0.5), FP_SUBNORMAL);  // and the caller's arithmetic keeps them
 }
 
 // The compound pendulum: T = 2 pi sqrt(I_P / (m g d)), with I_P = m (L^2 + W^2) / 12 + m d^2 about the pivot and
