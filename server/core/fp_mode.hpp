@@ -16,10 +16,12 @@ namespace ladder::core {
 
 #if defined(__SSE2__)
 constexpr unsigned kFlushSubnormals = 0x8040;  // MXCSR: FTZ (bit 15) and DAZ (bit 6)
+constexpr unsigned kFpControl = ~0x3fu;        // MXCSR's control bits (its low six are sticky exception flags)
 inline unsigned fp_mode() { return _mm_getcsr(); }
 inline void set_fp_mode(unsigned mode) { _mm_setcsr(mode); }
 #else
 constexpr unsigned kFlushSubnormals = 0;
+constexpr unsigned kFpControl = 0;
 inline unsigned fp_mode() { return 0; }
 inline void set_fp_mode(unsigned) {}
 #endif

@@ -55,7 +55,9 @@ void Lanes::helper_loop() {
     unsigned expected = seen - 1;  // the job is run by whoever claims it first: this thread or run()'s caller
     if (!claimed_.compare_exchange_strong(expected, seen)) continue;
     try {
-      if (fp_mode() != mode_) set_fp_mode(mode_);
+      // (the control bits only: each thread's own exception flags differ, and a write of the mode costs)
+      if (const unsigned mode = fp_mode(); (mode ^ mode_) & kFpControl)
+        set_fp_mode((mode_ & kFpControl) | (mode & ~kFpControl));
       fn_(job_, 1);
     } catch (...) {
       error_ = std::current_exception();

@@ -434,8 +434,8 @@ double World::finish_work(double t0, double h) const {
 
 Snapshot World::save() const {
   if (dirty_) throw std::logic_error("save: the model has unbuilt hinges; call finalize() first");
-  return {state_,         forces_,        t_,           structure_,   adaptive_h_,
-          hinge_force_,   hinge_force_1_, hinge_force_2_, force_steps_, force_step_h_};
+  return {state_, forces_, t_, structure_, adaptive_h_,
+          hinge_force_, hinge_force_1_, hinge_force_2_, force_steps_, force_step_h_};
 }
 
 void World::restore(const Snapshot& s) {

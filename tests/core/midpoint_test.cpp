@@ -353,11 +353,12 @@ TEST(Midpoint, StartsFromTheLastStepsHingeForces) {
 // A step whose last Newton correction is tiny ends on the bound of what that correction leaves, without a pass that
 // measures it (docs/model.md section 3.1); its positions come from the bodies' mean velocities at the final impulses,
 // and the gaps it reports are the end state's. A chain of 200 rods hanging at rest takes that way at every step
-// that iterates: each such step must have converged, report the end state's largest gap (max_hinge_error, computed apart from
-// the step from the particles' positions, to 1e-15 m: the two sum the same terms in another order) and leave every
-// hinge closed to the 1e-12 m tolerance. A step that kept the mean velocities of the iterate before the correction
-// would open the hinges by h^2 |dL| / m, about 1e-8 m here. Set swinging (0.5 N s at its middle), some of its steps
-// need the measuring pass (34 of 100), and every step still converges with its reported gap the end state's.
+// that iterates: each such step must have converged, report the end state's largest gap (max_hinge_error, computed
+// apart from the step from the particles' positions, to 1e-15 m: the two sum the same terms in another order) and
+// leave every hinge closed to the 1e-12 m tolerance. A step that kept the mean velocities of the iterate before the
+// correction would open the hinges by h^2 |dL| / m, about 1e-8 m here. Set swinging (0.5 N s at its middle), some of
+// its steps need the measuring pass (34 of 100), and every step still converges with its reported gap the end
+// state's.
 TEST(Midpoint, ARestingChainEndsOnTheRemainderBound) {
   World world(midpoint());
   const auto parts = hanging_rods(world, std::vector<double>(200, 0.0));
