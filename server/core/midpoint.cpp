@@ -486,7 +486,7 @@ void World::step_midpoint(double h) {
   double last_rho = kInfinity, final_gap = 0;
   int limit = options_.max_iterations;  // this solve's last iteration (a rescue extends it)
   int far_rescues = 0;  // the far rescues tried: from shorter steps (kRescueFirst, then kRescueSecond), then long
-  bool expect_converged = m.guess_was_right;
+  bool expect_converged = m.guess_odds.expect_right();
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   for (int iteration = 0;; ++iteration) {
     lane[0] = lane[1] = PassAcc{};
@@ -637,9 +637,10 @@ void World::step_midpoint(double h) {
       });
       lane[0].pivots += three ? m.newton3.meet(split, m.dx) : newton_.meet(split, m.dlam);
     };
-    // When this iterate is likely the answer (the last one was within a few orders of the tolerance, or the last
-    // step's first guess was right), the residual alone is measured first, and the Newton blocks only if it falls
-    // short: a pass with half the arithmetic instead of a full one. Either way the same values are computed.
+    // When this iterate is likely the answer (the last one was within a few orders of the tolerance, or the step's
+    // first guess has good odds: MidpointWork::GuessOdds), the residual alone is measured first, and the Newton blocks
+    // only if it falls short: a pass with half the arithmetic instead of a full one. Either way the same values are
+    // computed.
     bool checked = false;
     if (expect_converged) {
       if (split == 0) {
@@ -656,7 +657,11 @@ void World::step_midpoint(double h) {
       }
       lane[0].merge(lane[1]);
       checked = !(std::sqrt(lane[0].worst_gap2) > tol) && !(lane[0].worst_rho > kRhoShare * tol);
-      if (!checked) lane[0] = lane[1] = PassAcc{};
+      ++st.checks;
+      if (!checked) {
+        lane[0] = lane[1] = PassAcc{};
+        ++st.short_checks;
+      }
     }
     if (!checked) {
       for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{}, FromTop{});
@@ -829,7 +834,7 @@ void World::step_midpoint(double h) {
       }
     }
   }
-  m.guess_was_right = st.iterations == 0;
+  m.guess_odds.record(st.iterations == 0);
 
   // Work and dissipation of the step, exactly as the scheme accounts them, and the end of the step. The sums keep
   // this order (the bodies' dissipation, then the hinge friction's; the friction's work, the users' forces', the
@@ -965,7 +970,7 @@ void World::rescue_guess(double h, const double* scales, size_t count) {
     kept.roll_u0.swap(m.roll_u0);
     std::swap(kept.roll_u0_version, m.roll_u0_version);
     std::swap(kept.roll_u0_structure, m.roll_u0_structure);
-    std::swap(kept.guess_was_right, m.guess_was_right);
+    std::swap(kept.guess_odds, m.guess_odds);
   };
   keep();
   const std::vector<BodyState> state = state_;
@@ -998,6 +1003,8 @@ void World::rescue_guess(double h, const double* scales, size_t count) {
       stats.iterations += stats_.iterations;
       stats.rescues += stats_.rescues;
       stats.regularised_pivots += stats_.regularised_pivots;
+      stats.checks += stats_.checks;
+      stats.short_checks += stats_.short_checks;
       seed_.lam.swap(m.lam);
       seed_.t.swap(m.t);
       last = scales[i];

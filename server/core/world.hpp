@@ -171,6 +171,9 @@ struct StepStats {
   // Midpoint solves still short after solver.max_iterations and rescued: by the exact Newton near the solution, or
   // from a shorter step's solution (docs/model.md section 3.1).
   int rescues = 0;
+  // Midpoint passes that measured an iterate's residual alone, expecting it to be the answer (MidpointWork::GuessOdds),
+  // and those of them that found it was not, so that a full Newton pass followed: the cost of a wrong expectation.
+  int checks = 0, short_checks = 0;
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
   // residual, converged only if both were.
@@ -184,6 +187,8 @@ struct StepStats {
     dissipated += s.dissipated;
     bound_ends += s.bound_ends;
     rescues += s.rescues;
+    checks += s.checks;
+    short_checks += s.short_checks;
   }
 };
 
@@ -591,7 +596,22 @@ class World {
     std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
     // The state and structure for which a step's end measured roll_u0 (its predicted end, midpoint.cpp).
     std::uint64_t roll_u0_version = 0, roll_u0_structure = 0;
-    bool guess_was_right = false;  // the last step's first guess solved it: try this one's residual alone first
+    // Whether a step's first guess is likely to solve it, from how the last steps' guesses fared: the first pass then
+    // measures the residual alone, and builds the Newton blocks only if the guess falls short. The odds are kept
+    // apart after a right and after a wrong guess (a chain at rest alternates between guessed and iterated steps:
+    // docs/benchmarks.md, "Eighth round"), each moved a quarter of the way to every outcome. They decide which pass
+    // runs first, never what it computes: a step's bits do not depend on them.
+    struct GuessOdds {
+      bool last_right = false;
+      double after_right = 1, after_wrong = 0;  // the chance of a right guess after a right one, after a wrong one
+      // The residual-alone pass costs about half a Newton pass, so it goes first when the chance is above one half.
+      bool expect_right() const { return (last_right ? after_right : after_wrong) > 0.5; }
+      void record(bool right) {
+        double& p = last_right ? after_right : after_wrong;
+        p += 0.25 * ((right ? 1.0 : 0.0) - p);
+        last_right = right;
+      }
+    } guess_odds;
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
     std::vector<double> jac, couple_ab, couple_ba;
