@@ -216,26 +216,21 @@ void World::step(double h, bool adaptive, Snapshot* before) {
     before->t = t_;
     before->structure = structure_;
     before->adaptive_h = adaptive_h_;
-    before->force_steps = force_steps_;
+    before->force_steps = std::min(force_steps_, 1);  // the history is not kept (World::step in world.hpp)
     before->force_step_h = force_step_h_;
+    before->hinge_forces_1.clear();
+    before->hinge_forces_2.clear();
     if (split_chain()) {  // in the step's halves (in_halves)
       if (!swapped) before->bodies.resize(state_.size());
       before->hinge_forces.resize(hinge_force_.size());
-      before->hinge_forces_1.resize(hinge_force_.size());
-      before->hinge_forces_2.resize(hinge_force_.size());
       in_halves(state_.size(), [&](size_t from, size_t to, int) {
         if (!swapped) std::copy(state_.begin() + from, state_.begin() + to, before->bodies.begin() + from);
         const size_t rows = hinge_force_.size(), r0 = rows * from / state_.size(), r1 = rows * to / state_.size();
         std::copy(hinge_force_.begin() + r0, hinge_force_.begin() + r1, before->hinge_forces.begin() + r0);
-        // (the history is as long as the forces: World::hinge_force_)
-        std::copy(hinge_force_1_.begin() + r0, hinge_force_1_.begin() + r1, before->hinge_forces_1.begin() + r0);
-        std::copy(hinge_force_2_.begin() + r0, hinge_force_2_.begin() + r1, before->hinge_forces_2.begin() + r0);
       });
     } else {
       if (!swapped) before->bodies = state_;
       before->hinge_forces = hinge_force_;
-      before->hinge_forces_1 = hinge_force_1_;
-      before->hinge_forces_2 = hinge_force_2_;
     }
   }
   if (whole)
@@ -445,8 +440,13 @@ void World::restore(const Snapshot& s) {
   t_ = s.t;
   adaptive_h_ = s.adaptive_h;
   hinge_force_ = s.hinge_forces;
-  hinge_force_1_ = s.hinge_forces_1;
-  hinge_force_2_ = s.hinge_forces_2;
+  if (s.hinge_forces_1.size() == s.hinge_forces.size() && s.hinge_forces_2.size() == s.hinge_forces.size()) {
+    hinge_force_1_ = s.hinge_forces_1;
+    hinge_force_2_ = s.hinge_forces_2;
+  } else {  // a step's `before`: without the history (World::step), which starts again
+    hinge_force_1_.assign(s.hinge_forces.size(), Vec2::Zero());
+    hinge_force_2_.assign(s.hinge_forces.size(), Vec2::Zero());
+  }
   force_steps_ = s.force_steps;
   force_step_h_ = s.force_step_h;
   mark_state_changed();

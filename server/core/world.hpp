@@ -136,7 +136,7 @@ struct Snapshot {
   std::uint64_t structure = 0;
   double adaptive_h = 0;  // the adaptive step's next trial sub-step: a redone step chooses the same sub-steps
   // The midpoint step's first guess: a redone step starts its solve from the same one (World::hinge_force_ and its
-  // history).
+  // history; the history empty in a step's `before`, World::step).
   std::vector<Vec2> hinge_forces, hinge_forces_1, hinge_forces_2;
   int force_steps = 0;
   double force_step_h = 0;
@@ -243,8 +243,12 @@ class World {
 
   // --- time stepping ---
   // One step of h; with Options::adaptive (unless `adaptive` is false) as many sub-steps as its error control needs.
-  // With `before`, the state before the step is left there, as save() would have returned it, so that a caller can
-  // take the step back with restore(): the reduced integrator hands over the buffer it stepped from, no copy.
+  // With `before`, the state before the step is left there, as save() would have returned it but for the midpoint's
+  // older forces (below), so that a caller can take the step back with restore(): the reduced integrator hands over
+  // the buffer it stepped from, no copy. The history of hinge forces behind the last step's (hinge_force_1_ and _2_,
+  // two copies a step) is left out: restore() of such a snapshot starts the history again (force_steps at most 1),
+  // and the next steps then start from the last forces alone until three steps of one length have passed. A watchdog
+  // that takes a step back redoes it in shorter steps, which do not use the history anyway.
   void step(double h, bool adaptive = true, Snapshot* before = nullptr);
   // A step is coming: the midpoint step's second thread (Options::threads), if it sleeps, starts waking now, while
   // the caller does its own work first (step() calls it too, before its snapshot). Changes no result.

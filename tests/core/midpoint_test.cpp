@@ -348,6 +348,28 @@ TEST(Midpoint, StartsFromTheLastStepsHingeForces) {
   EXPECT_EQ(once.hinge_forces_1, again.hinge_forces_1);  // the history the next step's guess takes (first_force)
   EXPECT_EQ(once.hinge_forces_2, again.hinge_forces_2);
   EXPECT_EQ(once.force_steps, 3);
+
+  // A step's `before` (World::step, for a watchdog) keeps the state and the last forces but not their history, which
+  // starts again on restore: the last forces stay the first guess, the older two are zero until steps refill them.
+  const Snapshot full = world.save();
+  Snapshot before_step;
+  world.step(1e-3, true, &before_step);
+  EXPECT_TRUE(before_step.hinge_forces_1.empty());
+  world.restore(before_step);
+  const Snapshot back = world.save();
+  ASSERT_EQ(back.bodies.size(), full.bodies.size());
+  for (size_t b = 0; b < full.bodies.size(); ++b) EXPECT_EQ(back.bodies[b].x, full.bodies[b].x) << "body " << b;
+  EXPECT_EQ(back.hinge_forces, full.hinge_forces);
+  EXPECT_EQ(back.force_steps, 1);
+  ASSERT_EQ(back.hinge_forces_1.size(), full.hinge_forces.size());
+  ASSERT_EQ(back.hinge_forces_2.size(), full.hinge_forces.size());
+  for (size_t k = 0; k < full.hinge_forces.size(); ++k) {
+    EXPECT_EQ(back.hinge_forces_1[k], Vec2::Zero()) << "row " << k;
+    EXPECT_EQ(back.hinge_forces_2[k], Vec2::Zero()) << "row " << k;
+  }
+  world.step(1e-3);
+  EXPECT_TRUE(world.last_step().converged);
+  EXPECT_EQ(world.save().hinge_forces_1, full.hinge_forces);  // the restored last forces moved into the history
 }
 
 // A step measures its first iterate's residual alone first (half the arithmetic of a Newton pass) only where its
