@@ -171,8 +171,9 @@ struct StepStats {
   // Midpoint solves still short after solver.max_iterations and rescued: by the exact Newton near the solution, or
   // from a shorter step's solution (docs/model.md section 3.1).
   int rescues = 0;
-  // Midpoint passes that measured an iterate's residual alone, expecting it to be the answer (MidpointWork::GuessOdds),
-  // and those of them that found it was not, so that a full Newton pass followed: the cost of a wrong expectation.
+  // Midpoint passes that measured an iterate's residual alone, expecting it to be the answer (a first guess with good
+  // odds, MidpointWork::GuessOdds, or an iterate near the tolerance), and those of them that found it was not, so that
+  // a full Newton pass followed: the cost of a wrong expectation.
   int checks = 0, short_checks = 0;
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
