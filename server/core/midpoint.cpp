@@ -639,8 +639,8 @@ void World::step_midpoint(double h) {
     };
     // When this iterate is likely the answer (the last one was within a few orders of the tolerance, or the step's
     // first guess has good odds: MidpointWork::GuessOdds), the residual alone is measured first, and the Newton blocks
-    // only if it falls short: a pass with half the arithmetic instead of a full one. Either way the same values are
-    // computed.
+    // only if it falls short: a pass with a third to a half of the arithmetic of a full one. Either way the same
+    // values are computed.
     bool checked = false;
     if (expect_converged) {
       if (split == 0) {

@@ -372,7 +372,7 @@ TEST(Midpoint, StartsFromTheLastStepsHingeForces) {
   EXPECT_EQ(world.save().hinge_forces_1, full.hinge_forces);  // the restored last forces moved into the history
 }
 
-// A step measures its first iterate's residual alone first (half the arithmetic of a Newton pass) only where its
+// A step measures its first iterate's residual alone first (a third to a half of a Newton pass) only where its
 // first guess has good odds (MidpointWork::GuessOdds). A chain hanging at rest alternates between guessed and
 // iterated steps; after a right guess the next one has always been wrong here, so once the odds have learnt that, no
 // pass is wasted on a residual alone that falls short, where the rule "after a right guess, check first" wasted one
