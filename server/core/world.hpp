@@ -24,6 +24,7 @@
 #include "core/geometry.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -603,19 +604,22 @@ class World {
     std::uint64_t roll_u0_version = 0, roll_u0_structure = 0;
     // Whether a step's first guess is likely to solve it, from how the last steps' guesses fared: the first pass then
     // measures the residual alone, and builds the Newton blocks only if the guess falls short. The odds are kept
-    // apart after a right and after a wrong guess (a chain at rest alternates between guessed and iterated steps:
-    // docs/benchmarks.md, "Eighth round"), each moved a quarter of the way to every outcome. They decide which pass
-    // runs first, never what it computes: a step's bits do not depend on them.
+    // apart for each pattern of the last three outcomes (a chain at rest goes round a cycle of guessed and iterated
+    // steps, e.g. three iterated and one guessed: docs/benchmarks.md, "Ninth round"), each moved a quarter of the way
+    // to every outcome, and start at what the last outcome was. They decide which pass runs first, never what it
+    // computes: a step's bits do not depend on them.
     struct GuessOdds {
-      bool last_right = false;
-      double after_right = 1, after_wrong = 0;  // the chance of a right guess after a right one, after a wrong one
-      // The residual-alone pass costs a third to a half of a Newton pass (about 200 against 590 instructions a row
-      // on the held ladder), so it goes first when a right guess is more likely than not.
-      bool expect_right() const { return (last_right ? after_right : after_wrong) > 0.5; }
+      static constexpr unsigned kPatterns = 8;  // the last three outcomes, the newest in bit 0 (1: a right guess)
+      unsigned last = 0;
+      std::array<double, kPatterns> odds = {0, 1, 0, 1, 0, 1, 0, 1};
+      // The residual-alone pass costs about a third of a Newton pass (about 200 against 630 instructions a row on the
+      // held ladder), so it pays to go first when a right guess is likelier than that: a right one saves the rest of
+      // a Newton pass, a wrong one costs the check.
+      bool expect_right() const { return odds[last] > 1.0 / 3; }
       void record(bool right) {
-        double& p = last_right ? after_right : after_wrong;
+        double& p = odds[last];
         p += 0.25 * ((right ? 1.0 : 0.0) - p);
-        last_right = right;
+        last = ((last << 1) | (right ? 1u : 0u)) % kPatterns;
       }
     } guess_odds;
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and

@@ -372,27 +372,31 @@ TEST(Midpoint, StartsFromTheLastStepsHingeForces) {
   EXPECT_EQ(world.save().hinge_forces_1, full.hinge_forces);  // the restored last forces moved into the history
 }
 
-// A step measures its first iterate's residual alone first (a third to a half of a Newton pass) only where its
-// first guess has good odds (MidpointWork::GuessOdds). A chain hanging at rest alternates between guessed and
-// iterated steps; after a right guess the next one has always been wrong here, so once the odds have learnt that, no
-// pass is wasted on a residual alone that falls short, where the rule "after a right guess, check first" wasted one
-// after every right guess. The choice never changes what a step computes.
+// A step measures its first iterate's residual alone first (about a third of a Newton pass) only where its first
+// guess has good odds (MidpointWork::GuessOdds). A chain hanging at rest goes round a cycle of guessed and iterated
+// steps; the odds kept for each pattern of the last three outcomes learn it, so that the right guesses are found by
+// the cheap pass and no pass is wasted on a residual alone that falls short. The rule "after a right guess, check
+// first" wasted a pass after every right guess; odds kept only after a right and after a wrong one found none of the
+// right guesses of a cycle of three iterated steps and a guessed one. The choice never changes what a step computes.
 TEST(Midpoint, ChecksTheFirstGuessFirstOnlyWhereItHasGoodOdds) {
   {  // at rest under gravity: 50 right guesses in 200 steps, each followed by a wrong one (measured)
     World world(midpoint());
     hanging_rods(world, std::vector<double>(20, 0.0));
     for (int i = 0; i < 100; ++i) world.step(1e-3);
-    int wrong_after_right = 0, short_checks = 0;
+    int wrong_after_right = 0, right = 0, checks = 0, short_checks = 0;
     bool last_right = false;
     for (int i = 0; i < 200; ++i) {
       world.step(1e-3);
-      const bool right = world.last_step().iterations == 0;
-      wrong_after_right += last_right && !right ? 1 : 0;
+      const bool now_right = world.last_step().iterations == 0;
+      wrong_after_right += last_right && !now_right ? 1 : 0;
+      right += now_right ? 1 : 0;
+      checks += world.last_step().checks;
       short_checks += world.last_step().short_checks;
-      last_right = right;
+      last_right = now_right;
     }
     ASSERT_GE(wrong_after_right, 20);  // what the odds learn from
-    EXPECT_LE(short_checks, 2);        // the rule "check after a right guess" wastes wrong_after_right
+    EXPECT_LE(short_checks, 5);  // measured 3; the rule "check after a right guess" wastes wrong_after_right
+    EXPECT_GE(checks - short_checks, right - 2);  // the right guesses found by the residual alone (all 50)
   }
   {  // at rest without gravity: every guess is right, and every step but the first measures it alone
     World world(midpoint(Vec2::Zero()));
