@@ -605,9 +605,9 @@ class World {
     // Whether a step's first guess is likely to solve it, from how the last steps' guesses fared: the first pass then
     // measures the residual alone, and builds the Newton blocks only if the guess falls short. The odds are kept
     // apart for each pattern of the last three outcomes (a chain at rest goes round a cycle of guessed and iterated
-    // steps, e.g. three iterated and one guessed: docs/benchmarks.md, "Ninth round"), each moved a quarter of the way
-    // to every outcome, and start at what the last outcome was. They decide which pass runs first, never what it
-    // computes: a step's bits do not depend on them.
+    // steps, e.g. three iterated and one guessed: docs/benchmarks.md, "Ninth round"), each moved half the way to
+    // every outcome (so that a cycle is learnt in a few turns), and start at what the last outcome was. They decide
+    // which pass runs first, never what it computes: a step's bits do not depend on them.
     struct GuessOdds {
       static constexpr unsigned kPatterns = 8;  // the last three outcomes, the newest in bit 0 (1: a right guess)
       unsigned last = 0;
@@ -618,7 +618,7 @@ class World {
       bool expect_right() const { return odds[last] > 1.0 / 3; }
       void record(bool right) {
         double& p = odds[last];
-        p += 0.25 * ((right ? 1.0 : 0.0) - p);
+        p += 0.5 * ((right ? 1.0 : 0.0) - p);
         last = ((last << 1) | (right ? 1u : 0u)) % kPatterns;
       }
     } guess_odds;
