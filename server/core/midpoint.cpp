@@ -206,7 +206,11 @@ void World::step_midpoint(double h) {
   }
   drive_kinematic(t1);
 
-  // Per body: the constants of the step and the first guess t = h w / 2.
+  // Per body: the constants of the step (kept while the bodies, h and the damping stay: constants_key) and the first
+  // guess t = h w / 2.
+  const MidpointWork::BodyConstantsKey constants_key{structure_, h, cl, ca};
+  const bool constants_kept = m.constants_key == constants_key && m.alpha.size() == nb && m.beta.size() == nb &&
+                              m.spin_gain.size() == nb && m.damp.size() == nb;
   m.t.resize(nb);
   m.rho.resize(nb);
   m.inv_jac.resize(nb);
@@ -224,29 +228,40 @@ void World::step_midpoint(double h) {
   lanes_.set_parallel(options_.threads >= 2);
   const auto halves = [&](size_t count, auto&& fn) { in_halves(count, fn); };
   double lane_max[2] = {0, 0};  // the largest h / (4 I) times the radius of gyration (newton_remainder), per lane
-  halves(nb, [&](size_t from, size_t to, int l) HOT_INLINE {
-    for (size_t b = from; b < to; ++b) {
-      const Body& body = bodies_[b];
-      const BodyState& s = state_[b];
-      if (body.kinematic) {
-        m.alpha[b] = 0;
-        m.vbar[b] = Vec2::Zero();
-        continue;
+  const auto start_bodies = [&](auto compute_constants) HOT_INLINE {
+    halves(nb, [&](size_t from, size_t to, int l) HOT_INLINE {
+      for (size_t b = from; b < to; ++b) {
+        const Body& body = bodies_[b];
+        const BodyState& s = state_[b];
+        if (body.kinematic) {
+          m.alpha[b] = 0;
+          m.vbar[b] = Vec2::Zero();
+          continue;
+        }
+        if constexpr (decltype(compute_constants)::value) {
+          // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
+          // -c_a I_p w (the parts' centres average to the body's).
+          m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
+          m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
+          lane_max[l] = std::max(lane_max[l], m.spin_gain[b] * body.gyration);
+          m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
+          m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
+        }
+        // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
+        m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
+        m.t[b] = 0.5 * h * s.w;
+        m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);  // kept beside every t (turn_by)
       }
-      // Damping: -c m vbar on the centre and -beta wbar on the spin, the exact sum of each part's -c m_p v_p and
-      // -c_a I_p w (the parts' centres average to the body's).
-      m.beta[b] = cl * (body.inertia - body.own_inertia) + ca * body.own_inertia;
-      m.spin_gain[b] = quarter_h * body.inv_inertia;  // h / (4 I)
-      lane_max[l] = std::max(lane_max[l], m.spin_gain[b] * body.gyration);
-      m.damp[b] = 1 + (half_h * m.beta[b]) * body.inv_inertia;
-      m.alpha[b] = body.inv_mass * inv_damped;  // 1 / (m (2 + h c))
-      // vbar - v without the hinges (kept as a difference: its rounding is then that of the change, not of v).
-      m.vfree[b] = m.alpha[b] * ((h * body.mass) * (g - cl * s.v));
-      m.t[b] = 0.5 * h * s.w;
-      m.kt[b] = 1 / (1 + m.t[b] * m.t[b]);  // kept beside every t (turn_by)
-    }
-  });
-  const double spin_gyration = std::max(lane_max[0], lane_max[1]);
+    });
+  };
+  if (constants_kept) {
+    start_bodies(std::false_type{});
+  } else {
+    start_bodies(std::true_type{});
+    m.constants_key = constants_key;
+    m.spin_gyration = std::max(lane_max[0], lane_max[1]);
+  }
+  const double spin_gyration = m.spin_gyration;
   // The driven bodies' turns over the step, for the hinge friction against them: t = tan(turn / 2).
   for (size_t i = 0; i < kinematic_bodies_.size(); ++i) {
     const size_t b = static_cast<size_t>(kinematic_bodies_[i]);

@@ -602,6 +602,16 @@ class World {
     std::vector<Vec2> roll_u0;           // per row: a rolling row's contact direction at the start
     // The state and structure for which a step's end measured roll_u0 (its predicted end, midpoint.cpp).
     std::uint64_t roll_u0_version = 0, roll_u0_structure = 0;
+    // What alpha, beta, spin_gain and damp (and spin_gyration, their largest h / 4I times a body's radius of
+    // gyration) were computed for: they depend on the bodies (which change only with the structure), the step's
+    // length and the damping, not on the state, and are kept from step to step while these stay.
+    struct BodyConstantsKey {
+      std::uint64_t structure = ~std::uint64_t{0};
+      double h = 0, linear_damping = 0, angular_damping = 0;
+      bool operator==(const BodyConstantsKey&) const = default;
+    };
+    BodyConstantsKey constants_key;
+    double spin_gyration = 0;
     // Whether a step's first guess is likely to solve it, from how the last steps' guesses fared: the first pass then
     // measures the residual alone, and builds the Newton blocks only if the guess falls short. The odds are kept
     // apart for each pattern of the last three outcomes (a chain at rest goes round a cycle of guessed and iterated

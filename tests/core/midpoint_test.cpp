@@ -226,6 +226,39 @@ TEST(Midpoint, EnergyLedgerClosesEveryStepOnADrivenDampedChain) {
   EXPECT_GT(lost, 1e-3);   // and damping took some
 }
 
+// The step keeps its per-body constants (1 / m (2 + h c), h / 4I, the spin's damping) from step to step while the
+// bodies, the step's length and the damping stay: a change of any of them must take effect at the next step. A free
+// rod without gravity under linear damping c and angular damping c_a: the midpoint rule's m (v1 - v0) / h =
+// -c m (v0 + v1) / 2 gives v1 = v0 (2 - h c) / (2 + h c) exactly, and likewise the spin with c_a (one part: its
+// own inertia is the body's); checked after every step through three changes (c, then c_a, then h) to 1e-14.
+TEST(Midpoint, DampingAndStepLengthChangesTakeEffectAtTheNextStep) {
+  Options o = midpoint(Vec2::Zero());
+  o.linear_damping = 0.2;
+  o.angular_damping = 0.3;
+  World world(o);
+  const int part = world.add_part(rod(Vec2::Zero(), 0.1, Vec2(0.7, -0.4), 2.5));
+  world.finalize();
+  Vec2 v = world.part_velocity(part);
+  double w = world.part_omega(part);
+  const auto run = [&](double h, double c, double ca) {
+    for (int i = 0; i < 20; ++i) {
+      world.step(h);
+      v *= (2 - h * c) / (2 + h * c);
+      w *= (2 - h * ca) / (2 + h * ca);
+      ASSERT_LT((world.part_velocity(part) - v).norm(), 1e-14 * v.norm()) << "h " << h << ", c " << c << ", step " << i;
+      ASSERT_LT(std::abs(world.part_omega(part) - w), 1e-14 * std::abs(w)) << "h " << h << ", c_a " << ca;
+    }
+  };
+  run(1e-3, 0.2, 0.3);
+  o.linear_damping = 5.0;
+  world.set_options(o);
+  run(1e-3, 5.0, 0.3);
+  o.angular_damping = 8.0;
+  world.set_options(o);
+  run(1e-3, 5.0, 8.0);
+  run(4e-3, 5.0, 8.0);
+}
+
 // Without gravity a free chain keeps its linear and angular momentum to 1e-12 relative over 1e5 steps. The scheme
 // keeps both exactly for hinges closed at both ends of each step, so what is left is the hinge solve's residual
 // times the impulses: the test asks the solve for 1e-15 m (the default 1e-12 m leaves 1e-10 of the angular
