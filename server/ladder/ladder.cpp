@@ -343,7 +343,8 @@ bool Ladder::any_violation(std::vector<double>& s, bool* clamped) const {
 
 void Ladder::violations_at_start(std::vector<double>& s) {
   if (s_cache_valid_ && s_cache_version_ == world_.state_version() && s_cache_structure_ == world_.structure()) {
-    s = s_cache_;
+    s.swap(s_cache_);  // the values move to s; the cache holds none until the step's end measure refills it
+    s_cache_valid_ = false;
     return;
   }
   any_violation(s);
@@ -489,7 +490,8 @@ void Ladder::advance_by(double h) {
   }
   const std::size_t events_before = events_.size();
   double remaining = h;
-  std::vector<double> s0, s1;
+  std::vector<double>& s0 = s_start_;
+  std::vector<double>& s1 = s_end_;
   for (int guard = 0; remaining > 0; ++guard) {
     violations_at_start(s0);
     const core::Energy e0 = world_.energy();  // with piece_work_ zero: at the start, or after book_motion()

@@ -268,6 +268,9 @@ class Ladder {
   std::vector<double> s_cache_;
   std::uint64_t s_cache_version_ = 0, s_cache_structure_ = 0;
   bool s_cache_valid_ = false;
+  // advance_by()'s measures at the start and the end of a step, kept so that a step neither allocates nor clears
+  // them; the start takes the cache's values by a swap (which leaves the cache invalid) rather than a copy.
+  std::vector<double> s_start_, s_end_;
   Grip& grip_of(int block);
   double nearest_turn(double angle, int block) const;
 };
