@@ -192,8 +192,10 @@ void World::step_midpoint(double h) {
   if (has_rolling_ && !(m.roll_u0_version == state_version_ && m.roll_u0_structure == structure_ &&
                         m.roll_u0.size() == n)) {
     m.roll_u0.resize(n);
-    for (size_t k = 0; k < n; ++k)
-      if (rows_[k].rolls) m.roll_u0[k] = roll_direction(k);
+    in_halves(n, [&](size_t from, size_t to, int) HOT_INLINE {
+      for (size_t k = from; k < to; ++k)
+        if (rows_[k].rolls) m.roll_u0[k] = roll_direction(k);
+    });
   }
   m.kinematic_start.clear();
   for (const int b : kinematic_bodies_) m.kinematic_start.push_back(state_[static_cast<size_t>(b)]);
@@ -950,7 +952,9 @@ void World::step_midpoint(double h) {
     st.converged = !(final_gap > tol);
     ++st.bound_ends;
   } else {
-    for (size_t k = 0; k < n; ++k) end_row(k);
+    halves(n, [&](size_t from, size_t to, int) HOT_INLINE {
+      for (size_t k = from; k < to; ++k) end_row(k);
+    });
   }
   // The hinges are closed to the tolerance (less rounding) at the iterate the positions were just set from: the next
   // step need not measure them again before it starts.

@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ladder::core {
@@ -310,6 +311,12 @@ class World {
   double max_hinge_error() const;   // largest gap of a hinge or weld: two hinged particles' distance (rolling: its
                                     // arc centres' distance from 2 r along the rolling direction) [m]
   bool finite() const;              // no NaN or infinity anywhere in the state
+  // fn(from, to, lane) over [0, count) in the step's two halves, on its two threads when it has them (in_halves
+  // below), for a caller's per-block pass that only reads the world: what it computes must not depend on the halves.
+  template <class Fn>
+  void for_halves(size_t count, Fn&& fn) const {
+    in_halves(count, std::forward<Fn>(fn));
+  }
 
   // Moment [N m, counter-clockwise] that a weld exerted, on average over the last step, on the parts on
   // particle pb's side of it, taken about the weld point, or, given particles about_a and about_b of the welded

@@ -312,33 +312,42 @@ bool Ladder::approaching(int k) const {
 }
 
 bool Ladder::any_violation(std::vector<double>& s, bool* clamped) const {
-  // Raw pointers and locals: writes through s would otherwise make the compiler reload hinges_ and s_detect_ for
-  // every hinge.
   const size_t n = hinges_.size();
-  const HingeInfo* hinge = hinges_.data();
-  const double detect = s_detect_;
   s.resize(n);
-  double* out = s.data();
-  if (n > 0) out[0] = -1.0;
-  bool any = false, inside = false;
-  core::Rot q_prev = world_.part_rotation(0);  // each block's rotation once, for its two hinges
-  for (size_t k = 1; k < n; ++k) {
-    const core::Rot q = world_.part_rotation(static_cast<int>(k));
-    const core::Rot qa = std::exchange(q_prev, q);
-    if (hinge[k].status != HingeStatus::Hinged) {
-      out[k] = -1.0;
-      continue;
+  if (n > 0) s[0] = -1.0;
+  // In the world's halves (World::for_halves), on its two threads for a long ladder: each hinge's value depends on
+  // its two blocks only, so the values are the same either way.
+  bool lane_any[2] = {false, false}, lane_inside[2] = {false, false};
+  world_.for_halves(n, [&](size_t from, size_t to, int lane) {
+    // Raw pointers and locals: writes through out would otherwise make the compiler reload hinges_ and s_detect_
+    // for every hinge.
+    const HingeInfo* hinge = hinges_.data();
+    const double detect = s_detect_;
+    double* out = s.data();
+    bool any = false, inside = false;
+    const size_t first = std::max<size_t>(from, 1);
+    if (first >= to) return;
+    core::Rot q_prev = world_.part_rotation(static_cast<int>(first - 1));  // each block's rotation once
+    for (size_t k = first; k < to; ++k) {
+      const core::Rot q = world_.part_rotation(static_cast<int>(k));
+      const core::Rot qa = std::exchange(q_prev, q);
+      if (hinge[k].status != HingeStatus::Hinged) {
+        out[k] = -1.0;
+        continue;
+      }
+      double v = measure(static_cast<int>(k), qa, q);
+      if (v > detect && !approaching(static_cast<int>(k))) {  // inside, but not crossing
+        v = detect;
+        inside = true;
+      }
+      out[k] = v;
+      any = any || v > detect;
     }
-    double v = measure(static_cast<int>(k), qa, q);
-    if (v > detect && !approaching(static_cast<int>(k))) {  // inside, but not crossing
-      v = detect;
-      inside = true;
-    }
-    out[k] = v;
-    any = any || v > detect;
-  }
-  if (clamped) *clamped = inside;
-  return any;
+    lane_any[lane] = any;
+    lane_inside[lane] = inside;
+  });
+  if (clamped) *clamped = lane_inside[0] || lane_inside[1];
+  return lane_any[0] || lane_any[1];
 }
 
 void Ladder::violations_at_start(std::vector<double>& s) {
