@@ -147,8 +147,10 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // step's bits do not depend on the threads; they differ from the one-sided elimination's in rounding only.
 
 namespace {
-// What a pass over the rows measures (per lane: the two halves of a split pass keep their own, merged after).
-struct PassAcc {
+// What a pass over the rows measures (per lane: the two halves of a split pass keep their own, merged after). A cache
+// line each: the two lanes update theirs at every row, and sharing a line made the two threads' caches pass it back
+// and forth all through a pass.
+struct alignas(64) PassAcc {
   double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;  // the residuals (finish_body, count_gap)
   bool exact = true;                                       // newton_remainder's: no floored or limited turn
   double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
@@ -315,15 +317,19 @@ void World::step_midpoint(double h) {
   ub0_.resize(n);
   // The longest arc-centre lever and contact radius (newton_remainder): a rolling contact's offset adds at most
   // twice its radius to a lever.
+  // (The maxima in locals: kept in the lanes' arrays, each row's stores would make them a chain through memory.)
   double lane_lever2[2] = {0, 0}, lane_radius[2] = {0, 0};
   halves(n, [&](size_t from, size_t to, int l) HOT_INLINE {
+    double lever2 = 0, radius = 0;
     for (size_t k = from; k < to; ++k) {
       m.lam[k] = h * (history ? first_force(k) : hinge_force_[k]);
       ua0_[k] = state_[rows_[k].a].q * rows_[k].ra;
       ub0_[k] = state_[rows_[k].b].q * rows_[k].rb;
-      lane_lever2[l] = std::max({lane_lever2[l], ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
-      if (rows_[k].rolls) lane_radius[l] = std::max(lane_radius[l], roll_[k].radius);
+      lever2 = std::max({lever2, ua0_[k].squaredNorm(), ub0_[k].squaredNorm()});
+      if (rows_[k].rolls) radius = std::max(radius, roll_[k].radius);
     }
+    lane_lever2[l] = lever2;
+    lane_radius[l] = radius;
   });
   const double lever =
       std::sqrt(std::max(lane_lever2[0], lane_lever2[1])) + 2 * std::max(lane_radius[0], lane_radius[1]);
@@ -942,7 +948,11 @@ void World::step_midpoint(double h) {
       }
     };
     lane[0] = lane[1] = PassAcc{};
-    halves(n, [&](size_t from, size_t to, int l) { end_rows(from, to, lane[l]); });
+    halves(n, [&](size_t from, size_t to, int l) {
+      PassAcc acc;  // (a local: see the start's levers)
+      end_rows(from, to, acc);
+      lane[l] = acc;
+    });
     lane[0].merge(lane[1]);
     const double worst2 = lane[0].worst_gap2, largest2 = lane[0].largest_gap2;
     final_gap = std::sqrt(worst2);
