@@ -317,7 +317,8 @@ void World::step_midpoint(double h) {
   ub0_.resize(n);
   // The longest arc-centre lever and contact radius (newton_remainder): a rolling contact's offset adds at most
   // twice its radius to a lever.
-  // (The maxima in locals: kept in the lanes' arrays, each row's stores would make them a chain through memory.)
+  // (The maxima in locals, stored once: in the lanes' array, side by side, the two threads would write one cache line
+  // at every row, and each row's stores would make them a chain through memory.)
   double lane_lever2[2] = {0, 0}, lane_radius[2] = {0, 0};
   halves(n, [&](size_t from, size_t to, int l) HOT_INLINE {
     double lever2 = 0, radius = 0;

@@ -44,7 +44,7 @@ Energy World::energy() const {
   Sums lane[2];
   // Per half of a long chain (in_halves), with two sums each (the even and odd bodies of the half).
   in_halves(bodies_.size(), [&](size_t from, size_t to, int l) {
-    Sums sum;  // a local, stored once: in lane[l] each addition would be a chain through memory
+    Sums sum;  // a local, stored once: in lane[l], beside the other lane's, both threads would write one cache line
     const auto add = [&](size_t b, int i) __attribute__((always_inline)) {
       const BodyState& s = state_[b];
       if (bodies_[b].kinematic) {
