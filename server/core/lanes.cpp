@@ -20,7 +20,9 @@ namespace {
 // 2-vCPU VM of docs/benchmarks.md a futex wake-up took 20 to 60 us after 0.1 ms asleep but 2 to 3 ms after 2 ms
 // (the idle virtual processor is descheduled), longer than a step. With a 50 us spin the helper slept between the
 // server's ticks and the caller ran both halves of most passes itself (docs/benchmarks.md, the fifth round). The
-// cost: while a long chain runs, the helper holds its processor; a paused server's sleeps after 1 ms.
+// cost: while a long chain runs, the helper holds its processor; a paused server's sleeps after 1 ms. (Under
+// SCHED_FIFO, ladderd puts it to sleep between ticks with rest(): the kernel stops a real-time thread that never
+// sleeps for 50 ms of every second.)
 constexpr auto kSpin = std::chrono::microseconds(1000);
 }  // namespace
 
@@ -40,7 +42,7 @@ void Lanes::helper_loop() {
       const auto until = std::chrono::steady_clock::now() + kSpin;
       for (int i = 0; (posted = posted_.load(std::memory_order_acquire)) == seen; ++i) {
         LADDER_PAUSE();
-        if ((i & 63) == 63 && std::chrono::steady_clock::now() > until) break;
+        if ((i & 63) == 63 && (resting_.load() || std::chrono::steady_clock::now() > until)) break;
       }
       // Sleep. sleeping_ and posted_ are sequentially consistent on both sides: either run() sees sleeping_ and
       // wakes the futex, or this thread sees the new job before it waits.
@@ -66,8 +68,15 @@ void Lanes::helper_loop() {
   }
 }
 
+void Lanes::rest() {
+  if (parallel_ && helper_.joinable()) resting_.store(true);
+}
+
 void Lanes::wake() {
-  if (!parallel_ || !helper_.joinable() || !sleeping_.load()) return;
+  // After rest() the helper may be asleep or about to be (it has seen resting_ but not yet said it sleeps): a ticket
+  // reaches it either way.
+  const bool rested = resting_.exchange(false);
+  if (!parallel_ || !helper_.joinable() || !(rested || sleeping_.load())) return;
   // An empty ticket, claimed before it is posted (only this thread posts): the helper wakes, finds it taken (as when
   // run()'s caller runs lane 1 itself) and spins for the next.
   const unsigned ticket = posted_.load() + 1;
@@ -82,6 +91,7 @@ void Lanes::run_erased(Fn fn, void* job) {
   job_ = job;
   mode_ = fp_mode();
   error_ = nullptr;
+  resting_.store(false);
   const unsigned ticket = posted_.fetch_add(1) + 1;
   if (sleeping_.load()) posted_.notify_one();
   std::exception_ptr mine;

@@ -6,7 +6,7 @@
 //
 // The helper is started on the first parallel run() and waits between jobs by spinning for up to 1 ms (longer than
 // the gap between two steps at 1 kHz: lanes.cpp, kSpin) and then sleeping on a futex (std::atomic::wait), so a
-// paused server costs no processor. Lane 1 is run by whichever thread claims it first: when the helper is slow to
+// paused server costs no processor; after rest() it sleeps at once (a server between ticks), and wake() wakes it. Lane 1 is run by whichever thread claims it first: when the helper is slow to
 // wake (asleep, or its processor taken by another thread), the caller runs it after lane 0, so a busy machine costs
 // at most the time of one thread. A Lanes copied or moved into place starts without a helper (a World returned by
 // value, a snapshot).
@@ -34,6 +34,11 @@ class Lanes {
   // idle machine, milliseconds on a busy one) overlaps the caller's serial work before its next run(). It then
   // spins for the next job as after one. Costs one atomic load when the helper is awake or absent.
   void wake();
+  // No work is coming for a while (a server's wait for its next tick): the helper goes to sleep now instead of
+  // spinning out its 1 ms, and wake() or the next run() wakes it. Under SCHED_FIFO a helper spinning through every
+  // gap holds its processor at real-time priority all the time, and the kernel's real-time throttling
+  // (sched_rt_runtime_us, 95 % by default) then stops it for the rest of each second: ticks 50 ms late.
+  void rest();
 
   // job(0) on the calling thread and job(1) on the helper (both on the caller when not parallel). An exception from
   // either is rethrown here, after both have finished.
@@ -63,6 +68,7 @@ class Lanes {
   std::atomic<unsigned> claimed_{0};    // the last job claimed, by the helper or by run()'s caller
   std::atomic<unsigned> done_{0};       // the last job the helper finished
   std::atomic<bool> sleeping_{false};   // the helper waits on posted_'s futex: run() must wake it
+  std::atomic<bool> resting_{false};    // rest() was called: the helper sleeps without spinning first
   std::atomic<bool> stop_{false};
 };
 

@@ -256,6 +256,9 @@ class World {
   // A step is coming: the midpoint step's second thread (Options::threads), if it sleeps, starts waking now, while
   // the caller does its own work first (step() calls it too, before its snapshot). Changes no result.
   void wake_threads() { lanes_.wake(); }
+  // No step is coming for a while (a server between ticks): the second thread sleeps now rather than spinning for
+  // the next one (Lanes::rest); wake_threads() or the next step wakes it. Changes no result.
+  void rest_threads() { lanes_.rest(); }
   double time() const { return t_; }
   const StepStats& last_step() const { return stats_; }
   // The adaptive step's next trial sub-step [s] (Options::adaptive), 0 before the first.

@@ -108,19 +108,30 @@ void Physics::take_commands() {
   sh_.waiter->wake();
 }
 
+// How long before a tick the step's second thread, asleep since the last one (World::rest_threads), is woken: a
+// sleeping thread takes tens of microseconds to run on this kind of virtual machine, and more after a longer sleep.
+constexpr auto kHelperLead = std::chrono::microseconds(200);
+
 // Waits for the next tick's deadline. A command that arrives meanwhile is applied at once: the simulation already
 // stands where the next tick starts, so it takes effect at the same sim time as it would then, and its ack goes
-// out without waiting for the deadline. The last server.spin_us before the deadline are busy-waited.
+// out without waiting for the deadline. The last server.spin_us before the deadline are busy-waited. The step's second
+// thread is woken kHelperLead before the deadline when a step is coming.
 void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& stop) {
   const auto halted = [&] { return stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed); };
   const auto ready = [&] { return (!sh_.inbox.empty() && taken_ < sh_.config.per_tick) || halted(); };
   const auto wake = deadline - std::chrono::microseconds(sh_.config.spin_us);
+  const auto helper_wake = deadline - kHelperLead;
+  bool helper_woken = session_.paused() && session_.pending_steps() == 0;  // (no step is coming: let it sleep)
   std::unique_lock lock(sh_.inbox_mutex);
   while (true) {
     const auto now = Clock::now();
+    if (!helper_woken && now >= helper_wake) {
+      session_.sim().ladder().world().wake_threads();
+      helper_woken = true;
+    }
     const bool sleeping = now < wake;  // else spinning
     if (sleeping) {
-      if (!sh_.inbox_cv.wait_until(lock, wake, ready)) continue;
+      if (!sh_.inbox_cv.wait_until(lock, helper_woken ? wake : std::min(wake, helper_wake), ready)) continue;
     } else if (now >= deadline) {
       return;
     } else if (!ready()) {
@@ -287,7 +298,8 @@ void Physics::publish_stats(Clock::time_point now) {
   sim_at_last_stats_ = sim.time();
 }
 
-void Physics::run(const std::atomic<bool>& stop) {
+void Physics::run(const std::atomic<bool>& stop, bool realtime) {
+  realtime_ = realtime;
   wake_on_time();
   last_stats_ = last_publish_ = Clock::now();
   tick_.tick = 1;
@@ -352,7 +364,14 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     if (sh_.notifier->watchdog() && now >= next_watchdog_) keep_watchdog(now);
     sh_.waiter->wake();
     deadline += period_d;
-    if (rates.real_time_factor > 0 || session_.paused()) idle_until(deadline, stop);
+    if (rates.real_time_factor > 0 || session_.paused()) {
+      // Under SCHED_FIFO the step's second thread sleeps until idle_until wakes it for the next tick, instead of
+      // spinning through the wait at real-time priority: a real-time thread that never sleeps is stopped by the
+      // kernel's real-time throttling for the rest of each second (Lanes::rest). Under the normal scheduler it spins
+      // on (docs/benchmarks.md, the twelfth round: commands are acknowledged sooner then).
+      if (realtime_) session_.sim().ladder().world().rest_threads();
+      idle_until(deadline, stop);
+    }
   }
 }
 

@@ -30,7 +30,8 @@ class Physics {
     refused_ = session_.taken_before().refused;
   }
 
-  void run(const std::atomic<bool>& stop);
+  // `realtime`: this thread runs under SCHED_FIFO (the step's second thread then sleeps between ticks: tick_loop).
+  void run(const std::atomic<bool>& stop, bool realtime = false);
 
  private:
   void tick_loop(const std::atomic<bool>& stop);
@@ -67,6 +68,7 @@ class Physics {
   std::string scene_options_;  // the live settings the last SceneInfo carried
   bool recording_;
   bool tick_log_;
+  bool realtime_ = false;
   TickRecord tick_;                // the tick under way, for the tick log
   std::vector<TickRecord> ticks_;  // ticks not yet handed to the I/O thread
   double next_checkpoint_ = 0;  // [s of sim time]

@@ -85,9 +85,9 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   if (config.spin_us > 0) spdlog::info("the physics thread busy-waits the last {} us before each tick", config.spin_us);
   std::exception_ptr physics_error;
   std::thread physics_thread([&] {
-    if (realtime) run_realtime("physics", config.realtime_priority);
+    const bool physics_realtime = realtime && run_realtime("physics", config.realtime_priority);
     try {
-      physics.run(stop);
+      physics.run(stop, physics_realtime);
     } catch (...) {
       physics_error = std::current_exception();
       shared.physics_done = true;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <ctime>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -14,7 +15,8 @@ namespace ladder::core {
 namespace {
 
 // Many short jobs back to back (the helper spinning), some after a pause (the helper asleep on its futex), some after
-// a wake(): each lane's work is done once per run and is visible to the caller when run() returns.
+// a wake() or a rest() (a server between ticks) or both: each lane's work is done once per run and is visible to the
+// caller when run() returns.
 TEST(Lanes, EachLaneRunsOncePerRunAndIsDoneWhenRunReturns) {
   for (const bool parallel : {false, true}) {
     Lanes lanes;
@@ -25,6 +27,12 @@ TEST(Lanes, EachLaneRunsOncePerRunAndIsDoneWhenRunReturns) {
       // (the helper spins 1 ms before it sleeps: lanes.cpp, kSpin)
       if (run % 5000 == 4999) std::this_thread::sleep_for(std::chrono::milliseconds(3));  // let the helper sleep
       if (run % 3 == 0) lanes.wake();  // (every few runs, asleep or not: it runs nothing)
+      if (run % 7 == 0) lanes.rest();  // (the next run or wake wakes it)
+      if (run % 11 == 0) lanes.wake();
+      if (run % 1000 == 999) {  // rested, given time to fall asleep, woken, run
+        lanes.rest();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
       if (run % 2000 == 1999) {  // woken, then let sleep again before the run
         lanes.wake();
         std::this_thread::sleep_for(std::chrono::milliseconds(3));
@@ -64,6 +72,34 @@ TEST(Lanes, AnExceptionFromEitherLaneReachesTheCallerAfterBothFinished) {
     EXPECT_EQ(ran[0], 1);
     EXPECT_EQ(ran[1], 1);
   }
+}
+
+// After rest() the helper sleeps at once instead of spinning for the next job (lanes.cpp's kSpin, 1 ms): measured as
+// the process's processor time while the caller sleeps. Without rest() it would be about 1 ms a round (less only when
+// the machine is so busy that the helper does not run; a slow machine does not make this fail).
+TEST(Lanes, ARestedHelperSleepsWithoutSpinning) {
+  const auto cpu_ms = [] {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+  };
+  Lanes lanes;
+  lanes.set_parallel(true);
+  int ran[2] = {0, 0};
+  lanes.run([&](int lane) { ++ran[lane]; });  // (starts the helper)
+  constexpr int kRounds = 50;
+  double idle = 0;
+  for (int round = 0; round < kRounds; ++round) {
+    lanes.wake();
+    lanes.run([&](int lane) { ++ran[lane]; });
+    lanes.rest();
+    const double before = cpu_ms();
+    std::this_thread::sleep_for(std::chrono::milliseconds(4));
+    idle += cpu_ms() - before;
+  }
+  EXPECT_EQ(ran[0], kRounds + 1);
+  EXPECT_EQ(ran[1], kRounds + 1);
+  EXPECT_LT(idle / kRounds, 0.3) << "ms of processor time per 4 ms rest: the helper spun";
 }
 
 // A copy (a World copied) starts without a helper and works on its own; the original's helper is unaffected.
