@@ -86,6 +86,10 @@ void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   if (tolerance > 0) o.tolerance = tolerance;
   l->set_options(o);
   if (tip) l->tip();
+  // One step before the timing: the first allocates the step's scratch and touches its pages for the first time,
+  // a one-off that at N = 100 000 (about 130 MB) cost as much as 10 to 20 steps (docs/benchmarks.md, the twelfth
+  // round), which the 30 timed steps there used to include.
+  l->advance(1e-3);
   double iterations = 0, bound_ends = 0, checks = 0, short_checks = 0;
   for (auto _ : state) {
     l->advance(1e-3);
