@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <fstream>
 #include <functional>
 #include <memory>
@@ -135,8 +136,16 @@ std::vector<Delivery> subscribers_run(int subs, bool same_process, int domain, c
     std::vector<std::thread> threads;
     for (int i = 0; i < subs; ++i)
       threads.emplace_back([&, i] { delivered[static_cast<std::size_t>(i)] = subscribe(domain, sim_id, seconds); });
-    meanwhile();
+    // A failure meanwhile (a server that stops answering) waits for the subscribers, which end on their own, and is
+    // then passed on: a joinable thread destroyed would end the program without stopping the server it started.
+    std::exception_ptr failed;
+    try {
+      meanwhile();
+    } catch (...) {
+      failed = std::current_exception();
+    }
     for (auto& t : threads) t.join();
+    if (failed) std::rethrow_exception(failed);
     return delivered;
   }
   std::vector<std::unique_ptr<ladder::test::Process>> children;
@@ -190,7 +199,20 @@ std::string make_pki() {
   return dir;
 }
 
+int run_bench(int argc, char** argv);
+
+// A failure ends the run with its message, after the destructors have stopped the server it started (an uncaught
+// exception would leave it running: at real-time priority, holding both processors).
 int main(int argc, char** argv) {
+  try {
+    return run_bench(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ladder-server-bench: %s\n", e.what());
+    return 1;
+  }
+}
+
+int run_bench(int argc, char** argv) {
   use_security_of_env();
   // A subscriber process started by subscribers_run(): --subscriber DOMAIN SIM_ID SECONDS OUT_FILE.
   if (argc == 6 && std::string(argv[1]) == "--subscriber") {

@@ -115,13 +115,13 @@ constexpr auto kHelperLead = std::chrono::microseconds(200);
 // Waits for the next tick's deadline. A command that arrives meanwhile is applied at once: the simulation already
 // stands where the next tick starts, so it takes effect at the same sim time as it would then, and its ack goes
 // out without waiting for the deadline. The last server.spin_us before the deadline are busy-waited. The step's second
-// thread is woken kHelperLead before the deadline when a step is coming.
-void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& stop) {
+// thread is woken kHelperLead before the deadline when a step is coming (and `wake_helper`).
+void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& stop, bool wake_helper) {
   const auto halted = [&] { return stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed); };
   const auto ready = [&] { return (!sh_.inbox.empty() && taken_ < sh_.config.per_tick) || halted(); };
   const auto wake = deadline - std::chrono::microseconds(sh_.config.spin_us);
   const auto helper_wake = deadline - kHelperLead;
-  bool helper_woken = session_.paused() && session_.pending_steps() == 0;  // (no step is coming: let it sleep)
+  bool helper_woken = !wake_helper || (session_.paused() && session_.pending_steps() == 0);  // (no step is coming)
   std::unique_lock lock(sh_.inbox_mutex);
   while (true) {
     const auto now = Clock::now();
@@ -364,13 +364,24 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     if (sh_.notifier->watchdog() && now >= next_watchdog_) keep_watchdog(now);
     sh_.waiter->wake();
     deadline += period_d;
-    if (rates.real_time_factor > 0 || session_.paused()) {
-      // Under SCHED_FIFO the step's second thread sleeps until idle_until wakes it for the next tick, instead of
-      // spinning through the wait at real-time priority: a real-time thread that never sleeps is stopped by the
-      // kernel's real-time throttling for the rest of each second (Lanes::rest). Under the normal scheduler it spins
-      // on (docs/benchmarks.md, the twelfth round: commands are acknowledged sooner then).
-      if (realtime_) session_.sim().ladder().world().rest_threads();
-      idle_until(deadline, stop);
+    const bool timed = rates.real_time_factor > 0 || session_.paused();
+    if (timed || realtime_) {
+      // Under SCHED_FIFO a loop that never waits (a step longer than the tick, or a real-time factor of 0) leaves the
+      // I/O thread, DDS's threads and every other program no processor but what the kernel's real-time throttling
+      // gives them: commands went unanswered. When the deadline has passed, it waits all the same, a tenth of the
+      // tick or of the time this one took, whichever is longer (the next tick is late by that, and says so).
+      // And under SCHED_FIFO the step's second thread sleeps until idle_until wakes it for the next tick (not at all
+      // after an overrun: the next step wakes it), instead of spinning through the wait at real-time priority: a
+      // real-time thread that never sleeps is stopped by the throttling for the rest of each second (Lanes::rest).
+      // Under the normal scheduler it spins on (docs/benchmarks.md, the twelfth round: commands are acknowledged
+      // sooner then).
+      const auto now_idle = Clock::now();
+      const auto yield = std::max(period_d, now_idle - start) / 10;
+      auto until = timed ? deadline : now_idle;
+      const bool overran = realtime_ && until <= now_idle;
+      if (overran) until = now_idle + yield;
+      if (realtime_ && (overran || now_idle < until - kHelperLead)) session_.sim().ladder().world().rest_threads();
+      idle_until(until, stop, !overran);
     }
   }
 }

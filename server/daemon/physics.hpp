@@ -36,7 +36,7 @@ class Physics {
  private:
   void tick_loop(const std::atomic<bool>& stop);
   void take_commands();
-  void idle_until(Clock::time_point deadline, const std::atomic<bool>& stop);
+  void idle_until(Clock::time_point deadline, const std::atomic<bool>& stop, bool wake_helper = true);
   void advance(double period, Clock::time_point tick_start);
   void collect_events();
   void publish_state();
