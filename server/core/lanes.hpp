@@ -8,8 +8,8 @@
 // the gap between two steps at 1 kHz: lanes.cpp, kSpin) and then sleeping on a futex (std::atomic::wait), so a
 // paused server costs no processor; after rest() it sleeps at once (a server between ticks), and wake() wakes it.
 // Lane 1 is run by whichever thread claims it first: when the helper is slow to wake (asleep, or its processor taken
-// by another thread), the caller runs it after lane 0, so a busy machine costs at most the time of one thread. A Lanes copied or moved into place starts without a helper (a World returned by
-// value, a snapshot).
+// by another thread), the caller runs it after lane 0, so a busy machine costs at most the time of one thread. A
+// Lanes copied or moved into place starts without a helper (a World returned by value, a snapshot).
 #pragma once
 
 #include <atomic>
