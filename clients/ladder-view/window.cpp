@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <memory>
 
@@ -447,6 +449,18 @@ class Viewer {
 int run_window(const Options& o) {
   if (SDL_Init(SDL_INIT_VIDEO) != 0) {
     std::cerr << "ladder-view: no display (" << SDL_GetError() << "); use --png FILE or --ascii\n";
+    return kFailed;
+  }
+  // With no display SDL falls back to its "offscreen" (or "dummy") driver, whose window nobody can see: a viewer
+  // that would run for ever showing nothing. Those drivers are taken only when asked for by name (SDL_VIDEODRIVER).
+  const char* driver = SDL_GetCurrentVideoDriver();
+  const char* asked = std::getenv("SDL_VIDEODRIVER");
+  if (driver != nullptr && (asked == nullptr || *asked == '\0') &&
+      (std::strcmp(driver, "offscreen") == 0 || std::strcmp(driver, "dummy") == 0)) {
+    std::cerr << "ladder-view: no display (DISPLAY and WAYLAND_DISPLAY are not set or not reachable; SDL offered only "
+                 "its invisible '"
+              << driver << "' driver); use --png FILE or --ascii\n";
+    SDL_Quit();
     return kFailed;
   }
   int code = kOk;

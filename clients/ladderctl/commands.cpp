@@ -192,8 +192,11 @@ void print_state(const client::State& s, bool json) {
               s.hinges.size() > 17 ? "..." : "");
 }
 
-// The event kinds ladderd publishes (server/ladder/ladder.cpp, to_string(EventKind)).
-const std::vector<std::string> kEventKinds{"flip_flop", "impact", "lock", "unlock", "break", "join", "solver_warning"};
+// The event kinds ladderd publishes: the ladder's (server/ladder/ladder.cpp, to_string(EventKind)) and the server's
+// own (server/daemon/physics.cpp: a stopped simulation, a scene's timed command refused).
+const std::vector<std::string> kEventKinds{"flip_flop", "impact",         "lock",           "unlock",
+                                           "break",     "join",           "solver_warning", "solver_failure",
+                                           "command_refused"};
 
 // --kinds flip_flop,lock -> the kinds; every one must be a kind ladderd publishes.
 std::vector<std::string> event_kinds(const std::string& text) {
@@ -447,7 +450,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   w->add_flag("--json", v.watch.json, "one JSON object per line");
   w->add_option("--rate", v.watch.rate, "most state lines per second in text (default 10; 0 = every state)");
   w->add_option("--kinds", v.kinds, "with events: only these kinds, e.g. flip_flop,lock (flip_flop, impact, lock, "
-                                    "unlock, break, join, solver_warning)");
+                                    "unlock, break, join, solver_warning, solver_failure, command_refused)");
   w->callback([&] {
     if (!v.kinds.empty() && v.watch.what != "events")
       throw CLI::ValidationError("--kinds", "only watch events takes --kinds");

@@ -81,7 +81,9 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
       {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, impact, lock, unlock, break, "
-                                            "join, solver_warning)"},
+                                            "join, solver_warning, solver_failure, command_refused)"},
+      // The server's own kinds pass (the kinds are checked in order: the first unknown one is named).
+      {"watch events --kinds solver_failure,command_refused,flip", 2, "'flip' is not an event kind"},
   };
   for (const Case& c : cases) {
     const Result r = ctl(c.args);

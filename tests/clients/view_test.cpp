@@ -796,6 +796,20 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   EXPECT_EQ(shell(kViewer + " --at 1").code, 2);  // --at needs --png
 }
 
+// No display: SDL would fall back to its invisible "offscreen" driver and the window would run for ever, unseen, on a
+// live server. The viewer says there is no display and exits 1 at once (`timeout` turns a viewer still running after
+// 20 s into code 124); asked for by name (SDL_VIDEODRIVER), the offscreen driver is taken.
+TEST_F(View, WithoutADisplayTheWindowSaysSoAndExitsOne) {
+  const std::string args = " --domain " + std::to_string(domain_) + " --sim-id " + sim_id_ + " --timeout 10";
+  const Result r = shell("env -u DISPLAY -u WAYLAND_DISPLAY timeout 20 " + kViewer + args);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("ladder-view: no display"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("use --png FILE or --ascii"), std::string::npos) << r.output;
+  const Result asked = shell("env -u DISPLAY -u WAYLAND_DISPLAY SDL_VIDEODRIVER=offscreen timeout 3 " + kViewer + args);
+  EXPECT_EQ(asked.code, 124) << asked.output;  // still showing the ladder when `timeout` stopped it
+  EXPECT_NE(asked.output.find("ladder-view: showing "), std::string::npos) << asked.output;
+}
+
 // Another participant publishing a SceneInfo of another generation under the server's sim id, again and again (so
 // that it is always the latest the viewer has). The client takes SceneInfo only from its server's participant
 // (docs/security.md), so the viewer ignores it and draws the server's ladder within its --timeout. (It used to wait
