@@ -1,6 +1,7 @@
 // ladder-view: the viewer of ladderd. A window by default (SDL2); --png FILE writes one snapshot, --ascii draws in
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
+#include "cli_checks.hpp"
 #include "transport/security.hpp"
 #include "transport/version.hpp"
 
@@ -48,12 +49,12 @@ int main(int argc, char** argv) {
   app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
-      ->check(CLI::PositiveNumber);
+      ->check(ladder::client::positive());
   auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");
   app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
   auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (q or Ctrl-C stops; t tips)");
   png->excludes(ascii);
-  app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(CLI::PositiveNumber);
+  app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(ladder::client::positive());
   app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
       ->needs(ascii)
       ->check(CLI::Range(0.1, 100.0));

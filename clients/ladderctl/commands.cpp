@@ -1,6 +1,7 @@
 #include "commands.hpp"
 #include "transport/version.hpp"
 
+#include "cli_checks.hpp"
 #include "list.hpp"
 #include "replay.hpp"
 #include "session_plot.hpp"
@@ -327,7 +328,7 @@ void add_connection(CLI::App& app, Connection& c) {
   app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
-      ->check(CLI::PositiveNumber);
+      ->check(ladder::client::positive());
   app.add_option("--security", c.security,
                  "DDS Security: this client's identity folder DIR/NAME of scripts/make-pki (docs/security.md)");
 }
@@ -417,7 +418,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   }
 
   auto* step = app.add_subcommand("step", "advance N steps (while paused)");
-  step->add_option("N", v.count, "number of steps")->required()->check(CLI::PositiveNumber);
+  step->add_option("N", v.count, "number of steps")->required()->check(ladder::client::positive());
   step->callback([&] {
     const ladder_msg_Command c = cmd::step(v.count);
     action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
@@ -467,7 +468,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   p->add_option("--log", v.plot.log, "a recorded session (ladderd --record): all of its states, no server needed")
       ->check(CLI::ExistingFile);
   p->add_option("--for", v.plot.seconds, "the running server: watch its states this long [s] (default 10)")
-      ->check(CLI::PositiveNumber);
+      ->check(ladder::client::positive());
   p->add_option("--size", v.plot_size, "WxH pixels (default 900x600)");
   p->callback([&] {
     if (!v.plot_size.empty()) {
@@ -485,8 +486,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   auto* r = app.add_subcommand("replay", "publish a recorded session (ladderd --record) as if live, for viewers");
   r->add_option("FILE", v.replay.log, "the session log")->required()->check(CLI::ExistingFile);
   r->add_option("--speed", v.replay.speed, "pace: 2 = twice as fast, 0 = as fast as possible (default 1)")
-      ->check(CLI::NonNegativeNumber);
-  r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")->check(CLI::NonNegativeNumber);
+      ->check(ladder::client::non_negative());
+  r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")->check(ladder::client::non_negative());
   r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)");
   r->callback([&] {
     standalone = [&v](const Connection& c) {

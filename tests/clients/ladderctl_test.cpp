@@ -80,6 +80,8 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"watch everything", 2, "WHAT"},
       {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
+      {"step 0", 2, "N: must be a number greater than 0, not 0"},
+      {"replay /dev/null --speed -1", 2, "--speed: must be a number of 0 or more, not -1"},
       {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, impact, lock, unlock, break, "
                                             "join, solver_warning, solver_failure, command_refused)"},
       // The server's own kinds pass (the kinds are checked in order: the first unknown one is named).

@@ -794,6 +794,9 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here'"), std::string::npos) << r.output;
   EXPECT_EQ(shell(kViewer + " --size 12").code, 2);
   EXPECT_EQ(shell(kViewer + " --at 1").code, 2);  // --at needs --png
+  const Result zero = shell(kViewer + " --timeout 0 --png " + out_ + ".png");
+  EXPECT_EQ(zero.code, 2) << zero.output;
+  EXPECT_NE(zero.output.find("--timeout: must be a number greater than 0, not 0"), std::string::npos) << zero.output;
 }
 
 // No display: SDL would fall back to its invisible "offscreen" driver and the window would run for ever, unseen, on a
