@@ -8,6 +8,7 @@
 #include <string_view>
 #include <utility>
 #include <variant>
+#include <vector>
 
 namespace ladder::daemon {
 
@@ -261,7 +262,7 @@ Outcome Session::set_param(const std::string& setting) {
     return {};
   }
   try {
-    sim_->set(setting);
+    sim_->set(setting, "server.real_time_factor, server.publish_rate");
   } catch (const scene::SceneError& e) {
     return {false, e.what()};
   }
@@ -269,10 +270,13 @@ Outcome Session::set_param(const std::string& setting) {
 }
 
 std::string scene_names(const std::string& dir) {
-  std::string names;
+  std::vector<std::string> stems;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
-    if (entry.path().extension() == ".toml") names += (names.empty() ? "" : ", ") + entry.path().stem().string();
+    if (entry.path().extension() == ".toml") stems.push_back(entry.path().stem().string());
+  std::sort(stems.begin(), stems.end());
+  std::string names;
+  for (const std::string& s : stems) names += (names.empty() ? "" : ", ") + s;
   return names;
 }
 

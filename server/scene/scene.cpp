@@ -882,16 +882,16 @@ bool is_live_key(std::string_view key) {
                            table == "damping");
 }
 
-Scene with_live_setting(const Scene& scene, const std::string& setting) {
+Scene with_live_setting(const Scene& scene, const std::string& setting, std::string_view also_live) {
   toml::table root;
   Scene s = scene;
   try {
     const Origins origins = apply_overrides(root, {setting});
     const std::string key = origins.begin()->first;
     if (!is_live_key(key))
-      throw SceneError("--set " + setting + ": " + key +
-                       " cannot change while the ladder runs (live keys: sim.*, solver.*, damping.*); set it in "
-                       "the scene and reset");
+      throw SceneError("--set " + setting + ": " + key + " cannot change while the ladder runs (live keys: sim.*, " +
+                       "solver.*, damping.*" + (also_live.empty() ? "" : ", ") + std::string(also_live) +
+                       "); set it in the scene file and load the scene again");
     read_options(Reader(root, scene.source, origins), s);
   } catch (const SceneError& e) {
     const std::string_view what = e.what();

@@ -75,8 +75,11 @@ std::string accuracy_of(const Scene& scene);
 bool is_live_key(std::string_view key);
 // A copy of `scene` with one live setting "key=value" applied, checked exactly as --set checks it. Throws
 // SceneError ("key=value: why") for a bad value, an unknown key, or a key that is not live (the ladder's shape
-// and the initial state are fixed once built: change them with --set and reset).
-Scene with_live_setting(const Scene& scene, const std::string& setting);
+// and the initial state are fixed once built: change them in the scene file, or with ladderd's --set at its start,
+// and load the scene again).
+// `also_live`, when given, is added to the refusal of a key that cannot change live after the scene's own live keys
+// (the server's live keys, which it takes before they reach the scene).
+Scene with_live_setting(const Scene& scene, const std::string& setting, std::string_view also_live = {});
 // Every live setting's current value, one "key=value" line each; then ladder.depth, which is not live but is
 // published with them for the viewer (SceneInfo's options), the only program that uses it.
 std::string live_settings(const Scene& scene);

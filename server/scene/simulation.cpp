@@ -8,8 +8,8 @@ namespace ladder::scene {
 
 Simulation::Simulation(const Scene& scene) : scene_(scene), ladder_(scene.ladder, scene.options), dt_(scene.dt) {}
 
-void Simulation::set(const std::string& setting) {
-  Scene changed = with_live_setting(scene_, setting);
+void Simulation::set(const std::string& setting, std::string_view also_live) {
+  Scene changed = with_live_setting(scene_, setting, also_live);
   if (changed.dt != dt_) {  // the step count restarts from now
     clock_base_ = time();
     clock_steps_ = 0;

@@ -26,7 +26,7 @@ class Simulation {
   // the start of the step.
   void step();
   // Applies a live setting "key=value" (see with_live_setting); throws SceneError, and then nothing changed.
-  void set(const std::string& setting);
+  void set(const std::string& setting, std::string_view also_live = {});
 
   // The simulated time, counted in steps: the time when dt last changed plus the steps since times dt, so that the
   // 10 000th step of 1 ms ends at 10 s exactly (the core's own clock is a running sum, off by rounding).

@@ -122,11 +122,15 @@ TEST(SessionRules, EverySessionVerbRefusalWordForWord) {
   refused(*s, Verb{Set{"server.publish_rate"}}, "server.publish_rate: expected key=value");
   refused(*s, Verb{Set{"server.speed=2"}},
           "server.speed=2: unknown key server.speed (server keys: server.real_time_factor, server.publish_rate)");
-  refused(*s, Verb{Set{"ladder.blocks=3"}}, "ladder.blocks=3: ", false);
+  refused(*s, Verb{Set{"ladder.blocks=3"}},
+          "ladder.blocks=3: ladder.blocks cannot change while the ladder runs (live keys: sim.*, solver.*, damping.*, "
+          "server.real_time_factor, server.publish_rate); set it in the scene file and load the scene again");
   refused(*s, Verb{Load{""}}, "load: give a scene name, e.g. classic");
   refused(*s, Verb{Load{"../../etc/passwd"}},
           "not permitted: scenes are loaded by name from the server's scene directory " + kScenes);
-  refused(*s, Verb{Load{"no-such-scene"}}, "no scene 'no-such-scene' in " + kScenes + " (available: ", false);
+  refused(*s, Verb{Load{"no-such-scene"}},
+          "no scene 'no-such-scene' in " + kScenes +
+              " (available: classic, double-ripple, free-chain, long, tall, tall-double-ripple, toy-1889)");
   // A kind that names no command, as it may come from a client or a log.
   CommandFields unknown;
   unknown.kind = 14;
