@@ -710,6 +710,17 @@ void Ladder::meet_stop(int k) {
   emit(EventKind::Impact, k, before - blocks_kinetic(), "pulled open with " + format_number(-moment) + " N m");
 }
 
+void Ladder::set_clock(double t) {
+  const double was = world_.time();
+  if (t == was) return;
+  world_.set_clock(t);
+  for (double& r : released_at_)
+    if (r == was) r = t;
+  for (double& f : flipped_at_)
+    if (f == was) f = t;
+  for (auto e = events_.rbegin(); e != events_.rend() && e->t == was; ++e) e->t = t;
+}
+
 void Ladder::released(int k) { released_at_[static_cast<size_t>(k)] = world_.time(); }
 
 // Met again at the instant it was let go (an impact or an unlock): its moment pulled, yet the free motion from that

@@ -166,6 +166,10 @@ class Ladder {
   double roll_radius() const { return spec_.hinge == HingeKind::Rolling ? spec_.end_radius : 0.0; }
   int blocks() const { return spec_.blocks; }
   double time() const { return world_.time(); }
+  // The caller's clock, counted in steps (scene::Simulation), replaces the world's running sum of step lengths at the
+  // end of a step; what was stamped with this instant (its events, releases and flip-flops) is stamped anew, so the
+  // rules that look at "this instant" hold across it. Call it between steps only.
+  void set_clock(double t);
   Vec2 block_centre(int i) const { return world_.part_position(i); }
   double block_angle(int i) const { return world_.part_angle(i); }
   void block_pose(int i, Vec2& centre, double& angle) const { world_.part_pose(i, centre, angle); }

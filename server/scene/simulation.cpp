@@ -37,6 +37,7 @@ void Simulation::step() {
   }
   ++steps_;
   ++clock_steps_;
+  ladder_.set_clock(time());  // events at the step's end then carry its time exactly, as the states do
 }
 
 }  // namespace ladder::scene

@@ -155,6 +155,28 @@ TEST_F(Offline, TrajectorySamplesFallOnExactMultiplesOfTenMilliseconds) {
   }
 }
 
+// An event at a step's end carries that step's time as the states do, counted in steps: an unlock comes at the end
+// of the step at which the loads pull the pair open, so its t is a whole number of steps exactly (the core's running
+// sum of step lengths put the classic toy's first unlock at 1.1239999999999872 s; it is 1.124 s).
+TEST_F(Offline, EventsAtAStepsEndCarryItsExactTime) {
+  for (const char* dt : {"0.001", "0.0001"}) {
+    const Result r = ladderd("--offline --quiet --scene " + kScenes + "classic.toml --duration 3 --set sim.dt=" + dt +
+                             " --events " + path("ev.jsonl"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::istringstream events(slurp(path("ev.jsonl")));
+    const double step = std::stod(dt);
+    int unlocks = 0;
+    for (std::string line; std::getline(events, line);) {
+      const json e = json::parse(line);
+      if (e["kind"] != "unlock") continue;
+      ++unlocks;
+      const double t = e["t"].get<double>();
+      EXPECT_EQ(t, std::round(t / step) * step) << "dt " << dt << ": " << line;
+    }
+    EXPECT_GT(unlocks, 0) << "dt " << dt;
+  }
+}
+
 // Same scene, same settings: the same trajectory to the last digit (17 significant digits are written).
 TEST_F(Offline, RunsAreBitForBitRepeatable) {
   for (const char* name : {"a.csv", "b.csv"}) {
