@@ -107,6 +107,12 @@ Client* connect(Connection& c, std::unique_ptr<Client>& client) {
 }
 
 int send(Client& client, const Connection& c, const ladder_msg_Command& command) {
+  if (client.scene_info() && client.scene_info()->replay) {  // it would never answer
+    std::cerr << "ladderctl: '" << c.sim_id << "' on DDS domain " << c.domain
+              << " is a replay of a recorded session (ladderctl replay), which takes no commands; give the sim id "
+                 "of a running ladderd (ladderctl list)\n";
+    return kNoServer;
+  }
   if (!client.may_command()) {
     std::cerr << "ladderctl: " << client.denied() << "\n";
     return kDenied;

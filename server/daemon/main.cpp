@@ -31,12 +31,17 @@ int main(int argc, char** argv) {
                  "scene file (TOML), or the name of one in the scenes folder (e.g. double-ripple); default: the "
                  "built-in classic toy at rest");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
-  auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-232)")->check(CLI::Range(0, 232));
+  auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-232)")
+                     ->check(CLI::Range(0, 232))
+                     ->capture_default_str();
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
-  auto* rate = app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time");
-  auto* publish = app.add_option("--publish-rate", c.server.rates.publish, "states published per second");
+  auto* rate =
+      app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time")->capture_default_str();
+  auto* publish =
+      app.add_option("--publish-rate", c.server.rates.publish, "states published per second")->capture_default_str();
   auto* rtf = app.add_option("--rtf", c.server.rates.real_time_factor,
-                             "real-time factor: sim seconds per wall second, 0 = as fast as possible");
+                             "real-time factor: sim seconds per wall second, 0 = as fast as possible")
+                  ->capture_default_str();
   auto* realtime = app.add_option("--realtime-priority", c.server.realtime_priority,
                                   "run the physics thread at SCHED_FIFO priority 1-99 (needs CAP_SYS_NICE); 0 = off")
                        ->check(CLI::Range(0, 99));
@@ -51,7 +56,9 @@ int main(int argc, char** argv) {
   app.add_option("--record", c.server.record, "write the session to an LCM event log FILE (docs/recording.md)");
   app.add_option("--tick-log", c.server.tick_log,
                  "write one line per tick of the real-time loop to FILE: start, lateness, step time, commands");
-  app.add_option("--resume", resume, "go on live from the last checkpoint of a session log FILE")
+  app.add_option("--resume", resume,
+                 "go on live, paused, from where a session log FILE ends (it is re-run to its end and checked on the "
+                 "way; docs/recording.md)")
       ->check(CLI::ExistingFile);
   app.add_flag("--offline", offline, "run the scene as fast as possible with no network, then exit");
   app.add_option("--resimulate", resimulate,
@@ -95,7 +102,13 @@ int main(int argc, char** argv) {
     if (!c.security.empty()) identity = daemon::server_identity(c.security);
     daemon::setup_logging(c);
   } catch (const std::exception& e) {
-    std::cerr << "ladderd: " << e.what() << "\n";
+    // A value checked under its configuration key also names the option it came from, when it came from one.
+    std::string why = e.what();
+    for (const auto& [key, option] : {std::pair{"server.physics_rate", rate}, {"server.publish_rate", publish},
+                                      {"server.real_time_factor", rtf}, {"server.spin_us", spin}})
+      if (option->count() && why.find(key) != std::string::npos)
+        why += " (given as " + option->get_name() + " " + option->as<std::string>() + ")";
+    std::cerr << "ladderd: " << why << "\n";
     return 2;
   }
 
@@ -105,6 +118,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (offline) {
+    // The live server's outputs: an offline run has its own (--events, --trajectory, --summary).
+    for (const auto& [given, option] : {std::pair{!c.server.record.empty(), "--record"},
+                                        {!c.server.tick_log.empty(), "--tick-log"}, {!resume.empty(), "--resume"}})
+      if (given) {
+        spdlog::error("{} is for the live server, not --offline (an offline run writes --events, --trajectory and "
+                      "--summary)",
+                      option);
+        return 2;
+      }
     if (c.scene.empty() || o.duration <= 0) {
       spdlog::error("--offline needs --scene FILE and --duration S (seconds > 0); see --help");
       return 2;

@@ -78,12 +78,12 @@ void Physics::take_commands() {
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
     if (r.accepted && !r.reason.empty())  // accepted with a note (a reset that dropped the live settings)
-      spdlog::info("{} {} from {}: accepted: {}", kind, c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} (command {}) from {}: accepted: {}", kind, c.command_id, text_of(c.client_id), r.reason);
     else if (r.accepted)
-      spdlog::debug("{} {} from {}: accepted at t = {:.6f} s{}", kind, c.command_id, text_of(c.client_id), t,
+      spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id, text_of(c.client_id), t,
                     taking_);
     else
-      spdlog::info("{} {} from {}: refused: {}", kind, c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} (command {}) from {}: refused: {}", kind, c.command_id, text_of(c.client_id), r.reason);
     // SceneInfo carries the live settings and the rates: published (and logged) again when they change. A setting
     // that leaves them as they were (a value they already had) sends none: at N = 10 000 a SceneInfo is 80 kB of
     // masses to every reader.

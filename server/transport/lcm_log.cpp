@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -15,7 +17,9 @@ std::int64_t now_us() {
 }
 
 LogWriter::LogWriter(const std::string& path) : path_(path), file_(path, "w") {
-  if (!file_.good()) throw std::runtime_error("cannot create the log file '" + path + "'");
+  const int why = errno;  // fopen's, if it failed
+  if (!file_.good())
+    throw std::runtime_error("cannot create the session log '" + path + "': " + std::strerror(why));
   thread_ = std::thread([this] { run(); });
 }
 

@@ -204,6 +204,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
                         Case{"--offline" + scene + " --duration 1 --set sim.dt=nan", "sim.dt"},
                         Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json", "cannot write"},
+                        Case{"--offline" + scene + " --duration 1 --record " + path("s.lcmlog"),
+                             "--record is for the live server, not --offline"},
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
@@ -217,7 +219,10 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{scene + " --tick-log /no/such/dir/t.txt",
                              "cannot create the tick log '/no/such/dir/t.txt': No such file or directory"},
                         Case{scene + " --record /no/such/dir/s.lcmlog",
-                             "cannot create the log file '/no/such/dir/s.lcmlog'"}}) {
+                             "cannot create the session log '/no/such/dir/s.lcmlog': No such file or directory"},
+                        Case{scene + " --publish-rate 0.5",
+                             "server.publish_rate must be >= 1 and at most server.physics_rate (given as "
+                             "--publish-rate 0.5)"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;

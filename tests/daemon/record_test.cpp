@@ -258,6 +258,26 @@ TEST_F(Record, ReplayRepublishesTheRecordedStates) {
   }
 }
 
+// A command to a replay is not sent into the void (a replay answers none): ladderctl says what the sim id is.
+TEST_F(Record, ACommandToAReplaySaysItIsOne) {
+  start({"--record", log_});
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  const std::string replay_id = sim_id_ + "-replay";
+  Process player({kLadderctl, "replay", log_, "--speed", "0.02", "--as", replay_id, "--domain",
+                  std::to_string(domain_)},
+                 (dir_ / "replay.log").string());
+  Client viewer(domain_, replay_id, "viewer");
+  ASSERT_TRUE(viewer.wait_for_server(kStart)) << player.log();
+  const Result r = shell(kLadderctl + " tip --domain " + std::to_string(domain_) + " --sim-id " + replay_id +
+                         " --timeout 10");
+  EXPECT_EQ(r.code, 3) << r.output;
+  EXPECT_NE(r.output.find("'" + replay_id + "' on DDS domain " + std::to_string(domain_) +
+                          " is a replay of a recorded session (ladderctl replay), which takes no commands"),
+            std::string::npos)
+      << r.output;
+}
+
 // A log is untrusted input: a state whose hinge status is none the message can carry (7) is skipped and counted,
 // and the replay goes on and ends normally.
 TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
