@@ -54,7 +54,9 @@ int main(int argc, char** argv) {
   app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
   auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (q or Ctrl-C stops; t tips)");
   png->excludes(ascii);
-  app.add_option("--frames", o.frames, "with --ascii: stop after N frames")->needs(ascii)->check(ladder::client::positive());
+  app.add_option("--frames", o.frames, "with --ascii: stop after N frames")
+      ->needs(ascii)
+      ->check(ladder::client::positive());
   app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
       ->needs(ascii)
       ->check(CLI::Range(0.1, 100.0));

@@ -493,7 +493,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   r->add_option("FILE", v.replay.log, "the session log")->required()->check(CLI::ExistingFile);
   r->add_option("--speed", v.replay.speed, "pace: 2 = twice as fast, 0 = as fast as possible (default 1)")
       ->check(ladder::client::non_negative());
-  r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")->check(ladder::client::non_negative());
+  r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")
+      ->check(ladder::client::non_negative());
   r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)");
   r->callback([&] {
     standalone = [&v](const Connection& c) {
