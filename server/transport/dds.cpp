@@ -26,9 +26,11 @@ CycloneLog g_cyclone_log;
 
 // Cyclone calls this for its info, warning, error and fatal messages, from its own threads. A sample it cannot
 // deserialize it drops with "deserialization TOPIC/TYPE failed": that is the only trace such a sample leaves.
+// d->message is the text alone: Cyclone's header (time, domain, thread; d->hdrsize bytes) sits in front of it, where
+// its own default sink starts writing (ddsrt/src/log.c). Skipping hdrsize into the message cut the first ~40
+// characters of every line ("cyclone:  address" for "add_peer_addresses: ladderd: unknown address").
 void on_cyclone_log(void*, const dds_log_data_t* d) {
-  const std::size_t skip = std::min(d->hdrsize, d->size);
-  std::string line(d->message + skip, d->size - skip);
+  std::string line(d->message, d->size);
   while (!line.empty() && (line.back() == '\n' || line.back() == ' ')) line.pop_back();
   if (line.find("deserialization " + g_cyclone_log.topic + "/") != std::string::npos)
     g_cyclone_log.undecodable.fetch_add(1, std::memory_order_relaxed);

@@ -723,7 +723,8 @@ TEST_F(View, TerminalAt80x24NamesTheKeysTipsPausesAndQuits) {
 
   term.type("t");
   EXPECT_TRUE(term.read_until("tip: accepted at t = ", 20)) << term.screen();
-  EXPECT_TRUE(eventually([&] { return server_->log().find("tip 1 from ") != std::string::npos; }, kAnswer))
+  EXPECT_TRUE(
+      eventually([&] { return server_->log().find("tip (command 1) from ") != std::string::npos; }, kAnswer))
       << server_->log();
   const std::size_t before_pause = term.screen().size();
   term.type(" ");
@@ -958,7 +959,8 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   const auto stats = client_->wait_stats([](const ladder_msg_Stats& st) { return st.commands_accepted >= 2; },
                                          Millis(10000));
   EXPECT_TRUE(stats) << "the server did not count the poke (pause + poke = 2 accepted)";
-  EXPECT_TRUE(eventually([&] { return server_->log().find("poke 1 from ") != std::string::npos; }, kAnswer))
+  EXPECT_TRUE(
+      eventually([&] { return server_->log().find("poke (command 1) from ") != std::string::npos; }, kAnswer))
       << server_->log();
 
   // The server stops: the viewer says it waits; a new server comes: the viewer shows it and its clicks work again.
@@ -1031,9 +1033,10 @@ TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
             0);
   EXPECT_TRUE(eventually([&] { return viewer.log().find("poke block 2: accepted") != std::string::npos; }, kStart))
       << viewer.log();
-  EXPECT_TRUE(eventually([&] { return second.log().find("poke 1 from ") != std::string::npos; }, kAnswer))
+  EXPECT_TRUE(
+      eventually([&] { return second..log().find("poke (command 1) from ") != std::string::npos; }, kAnswer))
       << second.log();
-  EXPECT_EQ(server_->log().find("poke 1 from "), std::string::npos) << "the first ladder was poked";
+  EXPECT_EQ(server_->log().find("poke (command 1) from "), std::string::npos) << "the first ladder was poked";
   viewer.signal(SIGTERM);
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
 }
@@ -1280,7 +1283,7 @@ TEST_F(View, RemoteViewerInAnotherNetworkNamespace) {
   int faces = 0;
   for (const Rgb& c : tipped.pixels) faces += is_face(c);
   EXPECT_GT(faces, 1000) << "the tipped picture shows no ladder";
-  EXPECT_NE(remote.log().find("tip 1 from "), std::string::npos) << remote.log();
+  EXPECT_NE(remote.log().find("tip (command 1) from "), std::string::npos) << remote.log();
 }
 
 }  // namespace
