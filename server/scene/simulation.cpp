@@ -31,9 +31,17 @@ void Simulation::step() {
     }
   }
   const int substeps = scene_.substeps;
-  for (int i = 0; i < substeps; ++i) {
-    ladder_.advance(dt_ / substeps);
-    max_step_residual_ = std::max(max_step_residual_, ladder_.world().last_step().residual);
+  try {
+    for (int i = 0; i < substeps; ++i) {
+      ladder_.advance(dt_ / substeps);
+      max_step_residual_ = std::max(max_step_residual_, ladder_.world().last_step().residual);
+    }
+  } catch (const std::runtime_error&) {
+    // The ladder stopped at the last state its watchdog accepted, which lies inside this step when the step was cut
+    // at an event (a flip-flop, a stop) or into sub-steps: the clock goes on from that state's own time.
+    clock_base_ = ladder_.time();
+    clock_steps_ = 0;
+    throw;
   }
   ++steps_;
   ++clock_steps_;

@@ -30,7 +30,8 @@ class Simulation {
 
   // The simulated time, counted in steps: the time when dt last changed plus the steps since times dt, so that the
   // 10 000th step of 1 ms ends at 10 s exactly. The core's own clock, a running sum of step lengths, is set to it
-  // after every step (model::Ladder::set_clock), so that the events at a step's end carry the same time.
+  // after every step (model::Ladder::set_clock), so that the events at a step's end carry the same time. After a
+  // step that failed inside (step() threw), it is the time of the state the ladder stopped at.
   double time() const { return clock_base_ + static_cast<double>(clock_steps_) * dt_; }
   double dt() const { return dt_; }
   std::uint64_t steps() const { return steps_; }

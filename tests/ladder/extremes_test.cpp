@@ -165,6 +165,27 @@ TEST(TimeStep, FiftyAndHundredMillisecondsKeepTheirEnergyWithTheMidpointStep) {
   }
 }
 
+// A step that fails after it was cut at an event stops at the last state its watchdog accepted, inside the step: the
+// simulation's clock is then that state's time (not the step's start, which the state would contradict), and the
+// reason names sim.dt, not the length of the piece that failed. (A sideways gravity of 1000 m/s^2 at 0.1 s with RK4
+// fails 84 ms into the first step, after two events; the reason named "sim.dt = 0.0602 s".)
+TEST(TimeStep, AFailureInsideACutStepLeavesTheClockAtTheStateItStoppedAt) {
+  scene::Simulation sim(
+      shipped("classic.toml", {"sim.dt=0.1", "sim.integrator=rk4", "sim.gravity=[1000,0]"}));
+  std::string error;
+  try {
+    while (sim.time() < 5) sim.step();
+  } catch (const std::runtime_error& e) {
+    error = e.what();
+  }
+  ASSERT_NE(error, "") << "the scene did not fail";
+  EXPECT_NE(error.find("too violent for sim.dt = 0.1 s"), std::string::npos) << error;
+  EXPECT_EQ(sim.time(), sim.ladder().time());
+  const double into_step = sim.time() - 0.1 * std::floor(sim.time() / 0.1 + 1e-9);
+  EXPECT_GT(into_step, 1e-6) << "t = " << sim.time() << ": expected a failure inside a step cut at an event";
+  EXPECT_EQ(first_non_finite(sim.ladder()), -1);
+}
+
 // One block, free and undamped: it falls as a point would. Symplectic Euler gives y_n = y_0 - g h^2 n (n + 1) / 2
 // exactly (to rounding, 1e-12 m over 1 s).
 // A step that is redone in halves must not leave a gap in any joint: at dt = 0.1 s a lock inside a halved step
