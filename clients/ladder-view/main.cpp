@@ -2,6 +2,7 @@
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
 #include "cli_checks.hpp"
+#include "transport/dds.hpp"
 #include "transport/security.hpp"
 #include "transport/version.hpp"
 
@@ -94,7 +95,12 @@ int main(int argc, char** argv) {
     }
     ladder::transport::set_default_identity(&*identity);
   }
-  if (!o.png.empty()) return run_png(o);
-  if (o.ascii) return run_ascii(o);
-  return run_window(o);
+  try {
+    if (!o.png.empty()) return run_png(o);
+    if (o.ascii) return run_ascii(o);
+    return run_window(o);
+  } catch (const ladder::transport::DdsError& e) {  // DDS would not start (a bad CYCLONEDDS_URI, say)
+    std::fprintf(stderr, "ladder-view: %s\n", e.what());
+    return kFailed;
+  }
 }

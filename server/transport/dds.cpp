@@ -144,7 +144,8 @@ Entity make_participant(dds_domainid_t domain, const Identity* identity) {
   if (identity == nullptr) identity = default_identity();
   if (identity == nullptr)
     return Entity(check(dds_create_participant(domain, nullptr, nullptr),
-                        "create DDS participant on domain " + std::to_string(domain)));
+                        "create DDS participant on domain " + std::to_string(domain) +
+                            " (is CYCLONEDDS_URI a readable, valid configuration? Cyclone's reason is logged above)"));
   Qos q;
   apply_security(q, *identity);
   return Entity(check(dds_create_participant(domain, q.get(), nullptr),

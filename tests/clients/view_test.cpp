@@ -795,6 +795,12 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here'"), std::string::npos) << r.output;
   EXPECT_EQ(shell(kViewer + " --size 12").code, 2);
   EXPECT_EQ(shell(kViewer + " --at 1").code, 2);  // --at needs --png
+  // DDS that will not start (a configuration file that is not there) is a failure with its reason, not an abort.
+  const Result no_dds = shell("CYCLONEDDS_URI=file:///no/such/cyclonedds.xml " + kViewer + " --domain " +
+                              std::to_string(domain_) + " --ascii --frames 1");
+  EXPECT_EQ(no_dds.code, 1) << no_dds.output;
+  EXPECT_NE(no_dds.output.find("ladder-view: create DDS participant on domain "), std::string::npos) << no_dds.output;
+  EXPECT_NE(no_dds.output.find("CYCLONEDDS_URI"), std::string::npos) << no_dds.output;
   const Result zero = shell(kViewer + " --timeout 0 --png " + out_ + ".png");
   EXPECT_EQ(zero.code, 2) << zero.output;
   EXPECT_NE(zero.output.find("--timeout: must be a number greater than 0, not 0"), std::string::npos) << zero.output;
@@ -1034,7 +1040,7 @@ TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
   EXPECT_TRUE(eventually([&] { return viewer.log().find("poke block 2: accepted") != std::string::npos; }, kStart))
       << viewer.log();
   EXPECT_TRUE(
-      eventually([&] { return second..log().find("poke (command 1) from ") != std::string::npos; }, kAnswer))
+      eventually([&] { return second.log().find("poke (command 1) from ") != std::string::npos; }, kAnswer))
       << second.log();
   EXPECT_EQ(server_->log().find("poke (command 1) from "), std::string::npos) << "the first ladder was poked";
   viewer.signal(SIGTERM);
