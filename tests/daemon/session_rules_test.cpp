@@ -75,6 +75,7 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(kInf, 0)}), "the point is inf, not a finite number");
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(5, 5)}), "the point is ", false);
   refused(*s, action(m::Poke{0, {0.001, 0}, {}}), "impulse: the block is held and does not move freely");
+  refused(*s, action(m::Push{0, {1, 0}, {0, 0}, 0.1}), "push: the block is held and does not move freely");
   refused(*s, action(m::Push{2, {kInf, 0}, {0, 0}, 0.1}), "the force is inf, not a finite number");
   refused(*s, action(m::Push{2, {5000, 0}, {0, 0}, 0.1}), "the force of 5000 N is beyond the limit of 100 N "
                                                            "(commands.max_force)");
