@@ -244,7 +244,7 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
   struct sigaction sa {}, old {};
   sa.sa_handler = on_interrupt;
   sigaction(SIGINT, &sa, &old);
-  std::uint64_t seen_state = 0, seen_stats = 0;
+  std::uint64_t seen_state = 0;
   const auto min_gap = std::chrono::duration<double>(rate > 0 ? 1.0 / rate : 0);
   auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
   while (!g_interrupted) {
@@ -254,11 +254,9 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
         if (w.kinds.empty() || std::find(w.kinds.begin(), w.kinds.end(), e.kind) != w.kinds.end())
           print_event(e, json);
     } else if (what == "stats") {
+      // Every new sample (once a second), paused or not: a paused server's step count stays where it is.
       const auto s = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(200));
-      if (s && s->steps != seen_stats) {
-        seen_stats = s->steps;
-        print_stats(*s, json);
-      }
+      if (s) print_stats(*s, json);
     } else {
       const auto s = client.wait_state([&](const client::State& st) { return st.seq > seen_state; }, Millis(200));
       if (s && std::chrono::steady_clock::now() - last_print >= min_gap) {

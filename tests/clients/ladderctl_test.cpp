@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <string>
 
 namespace ladder::test {
@@ -144,6 +145,24 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   EXPECT_EQ(r.output.find(" s  impact "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  lock "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
+}
+
+// watch stats prints every Stats sample (one a second), paused or not: it used to print a sample only when the step
+// count had changed, so a paused server's stats never showed.
+TEST_F(Ladderctl, WatchStatsShowsAPausedServersStats) {
+  ASSERT_EQ(ctl("pause").code, 0);
+  const Result r = run("watch stats --json" + where_ + " & pid=$!; sleep 6; kill -INT $pid; wait $pid");
+  std::size_t lines = 0, steps = 0;
+  std::set<std::string> counts;
+  for (std::size_t at = r.output.find("{\"sim_time\""); at != std::string::npos;
+       at = r.output.find("{\"sim_time\"", at + 1)) {
+    ++lines;
+    const std::size_t s = r.output.find("\"steps\":", at);
+    counts.insert(r.output.substr(s, r.output.find(',', s) - s));
+  }
+  steps = counts.size();
+  EXPECT_GE(lines, 3u) << r.output;  // about 5 in 6 s
+  EXPECT_EQ(steps, 1u) << "paused: the step count does not move\n" << r.output;
 }
 
 // ladderctl plot: a tipped ladder's ripple (a flip-flop at each hinge, 1 to 5) and its energy, from the running
