@@ -1,8 +1,10 @@
 // --png FILE [--at SIMTIME]: one snapshot of the first state at or after SIMTIME (the latest state without --at).
 #include "app.hpp"
 
+#include <chrono>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 
 namespace ladder::view {
@@ -21,6 +23,7 @@ int run_png(const Options& o) {
   // Wait for the state as long as the server keeps talking (a far --at may take a while).
   Feed feed(c);
   bool told = false, first = true;
+  std::optional<std::chrono::steady_clock::time_point> paused_since;
   client::State state;
   client::SceneInfo info;
   while (true) {
@@ -50,6 +53,18 @@ int run_png(const Options& o) {
       std::cerr << "ladder-view: waiting for t >= " << *o.at << " s; the simulation is paused at t = " << s->sim_time
                 << " s\n";
       told = true;
+    }
+    // Paused for --timeout on end, short of --at: a script waiting on the snapshot would wait for ever.
+    if (s && s->paused) {
+      if (!paused_since) paused_since = std::chrono::steady_clock::now();
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - *paused_since).count() > o.timeout) {
+        std::cerr << "ladder-view: the simulation stayed paused at t = " << fixed3(s->sim_time) << " s for "
+                  << o.timeout << " s (--timeout), short of --at " << *o.at
+                  << " s; resume it (ladderctl resume) or give a longer --timeout\n";
+        return kNoServer;
+      }
+    } else {
+      paused_since.reset();
     }
   }
   // The real-time factor is measured once a second; give it that long to arrive.

@@ -786,6 +786,14 @@ TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
   EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << ahead.log();
   EXPECT_NE(ahead.log().find("ladder-view: wrote "), std::string::npos) << ahead.log();
   EXPECT_EQ(ahead.log().find("already"), std::string::npos) << ahead.log();
+  // Paused short of --at for --timeout on end: code 3 and why, not a wait for ever.
+  const client::State still = pause();
+  std::snprintf(at, sizeof at, "%.3f", still.sim_time + 100);
+  const Result stuck = shell(kViewer + where() + " --timeout 2 --png " + out_ + "-stuck.png --at " + at);
+  EXPECT_EQ(stuck.code, 3) << stuck.output;
+  EXPECT_NE(stuck.output.find("ladder-view: the simulation stayed paused at t = "), std::string::npos)
+      << stuck.output;
+  EXPECT_NE(stuck.output.find(" s for 2 s (--timeout), short of --at "), std::string::npos) << stuck.output;
 }
 
 TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
