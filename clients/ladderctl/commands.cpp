@@ -120,7 +120,13 @@ int send(Client& client, const Connection& c, const ladder_msg_Command& command)
   const std::uint64_t id = client.send(command);
   const auto ack = client.wait_ack(id, timeout_of(c));
   if (!ack) {
-    std::cerr << "ladderctl: " << no_server(c) << " (no answer to the command)\n";
+    // The server was found (connect()): it is there, but did not answer this one.
+    char t[32];
+    std::snprintf(t, sizeof t, "%g", c.timeout);
+    std::cerr << "ladderctl: no answer from ladderd '" << c.sim_id << "' on DDS domain " << c.domain
+              << " to the command within " << t
+              << " s: it may be limiting this client's commands (its Stats count them: commands_rate_limited, "
+                 "commands_unanswered), or it stopped, or the network lost them\n";
     return kNoServer;
   }
   std::cout << format_ack(*ack) << "\n";
