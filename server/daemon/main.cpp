@@ -112,6 +112,15 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (!offline) {  // the offline run's outputs, which a live server would silently ignore
+    for (const auto& [given, option] :
+         {std::pair{o.duration != 0, "--duration"}, {!o.events.empty(), "--events"},
+          {!o.trajectory.empty(), "--trajectory"}, {!o.summary.empty(), "--summary"}})
+      if (given) {
+        spdlog::error("{} is for --offline runs; a live server runs until it is stopped (add --offline)", option);
+        return 2;
+      }
+  }
   if (offline && !resimulate.empty()) return daemon::run_resimulation(resimulate, !quiet);
   if (!resimulate.empty()) {
     spdlog::error("--resimulate runs offline: add --offline");
