@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -28,10 +29,10 @@ struct Glyph {
   char ch;
   int priority;
 };
+// (The hinges' and grips' marks are not drawn in the picture but put in as characters: marks().)
 constexpr Glyph kGlyphs[] = {{kBackground, ' ', 0}, {kDepth, '.', 1},    {kSideEven, ':', 1}, {kSideOdd, ':', 1},
                              {kFaceEven, '#', 2},   {kFaceOdd, '#', 2},  {kRibbon, '+', 3},   {kHand, '%', 3},
-                             {kHandShade, '%', 3},
-                             {kHinge, 'o', 4},      {kLocked, '@', 5},   {kBroken, 'x', 5},   {kGrip, '*', 5}};
+                             {kHandShade, '%', 3}};
 
 const Glyph& nearest(std::uint32_t argb) {
   const int r = static_cast<int>((argb >> 16) & 0xff), g = static_cast<int>((argb >> 8) & 0xff),
@@ -67,6 +68,7 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   Hud hud;
   hud.show = false;
   hud.scale_bar = false;
+  hud.marks = false;
   draw(cr, cam, info, state, hud);
   cairo_destroy(cr);
   cairo_surface_flush(surface);
@@ -83,6 +85,11 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
       lines[y][x] = (a.priority >= b.priority ? a : b).ch;
     }
   cairo_surface_destroy(surface);
+  // The marks, one character each where the picture would have them (a cell is one pixel across, two down).
+  for (const Mark& m : marks(cam, info, state)) {
+    const double x = std::floor(m.at.x), y = std::floor(0.5 * m.at.y);
+    if (x >= 0 && x < cols && y >= 0 && y < rows) lines[static_cast<std::size_t>(y)][static_cast<std::size_t>(x)] = m.ch;
+  }
   // Block numbers at the centres, where the whole number lands on a block (its faces, sides or tapes).
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {
     const Point s = cam.to_screen({state.blocks[i].x, state.blocks[i].y});

@@ -702,12 +702,37 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
     drawn = static_cast<int>(order.size());
     if (v.r > 0 && camera.side() && v.length_px >= 12) draw_tape_lines(cr, v, state, shown, facets);
     if (info.top == "held" && !state.blocks.empty() && shown[0]) draw_hand(cr, v, state.blocks[0]);
-    if (v.length_px >= 12) draw_hinges(cr, v, state, shown);
+    if (hud.marks && v.length_px >= 12) draw_hinges(cr, v, state, shown);
     if (hud.numbers && v.length_px >= 12) draw_numbers(cr, v, state, shown);
   }
-  draw_grips(cr, v, state);
+  if (hud.marks) draw_grips(cr, v, state);
   draw_hud(cr, camera, hud, &state);
   return drawn;
+}
+
+std::vector<Mark> marks(const Camera& camera, const client::SceneInfo& info, const client::State& s) {
+  const View v(camera, info);
+  const double front = v.towards_viewer({0, 0, 1}) >= 0 ? 0.5 * v.depth : -0.5 * v.depth;  // as draw_hinges()
+  std::vector<Mark> out;
+  for (std::size_t k = 1; k < s.blocks.size() && k < s.hinges.size(); ++k) {
+    const client::Hinge& h = s.hinges[k];
+    const int ki = static_cast<int>(k);
+    if (h.status == ladder_msg_BROKEN) {
+      for (const int b : {ki, ki - 1}) {
+        const Point p = hinge_particle(v.info, v.r, b, h.corner, s.blocks[static_cast<std::size_t>(b)]);
+        out.push_back({v.screen({p.x, p.y, front}), 'x'});
+      }
+      continue;
+    }
+    // A plain hinge only where blocks are a few pixels long: on a long ladder seen whole, one a row would hide it.
+    if (h.status != ladder_msg_LOCKED && v.length_px < 4) continue;
+    const Point p = pivot(v.info, v.r, s, ki);
+    out.push_back({v.screen({p.x, p.y, front}), h.status == ladder_msg_LOCKED ? '@' : 'o'});
+  }
+  for (const ladder_msg_Grip& g : s.grips)
+    if (g.block >= 0 && static_cast<std::size_t>(g.block) < s.blocks.size())
+      out.push_back({v.cam.to_screen({g.target_x, g.target_y}), '*'});
+  return out;
 }
 
 }  // namespace ladder::view

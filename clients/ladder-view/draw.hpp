@@ -152,7 +152,18 @@ struct Hud {
   std::string title;             // e.g. the sim id
   std::vector<std::string> lines;  // overlay lines (stats, keys, the last command's answer)
   std::string banner;            // big centred message, e.g. "waiting for ladderd ..."
+  bool marks = true;             // the hinges' and grips' marks (the terminal rendering sets its own: marks())
 };
+
+// Where the hinges and grips are marked, in screen pixels, and with what character: 'o' a hinge, '@' a locked one,
+// 'x' each of a broken hinge's two particles, '*' a grip's target (plain hinges only where a block is at least 4 px
+// long). The terminal rendering puts these characters in
+// its cells: a mark a few pixels across, read back from an antialiased picture, is lost or mistaken for an edge.
+struct Mark {
+  Point at;
+  char ch;
+};
+std::vector<Mark> marks(const Camera& camera, const client::SceneInfo& info, const client::State& state);
 
 // Draws everything: background, blocks as boxes (back to front) with their ribbons, the hand on a held top block,
 // hinges (locked and broken ones marked, each at its pivot), grips, numbers, scale bar, HUD. Rolling-hinge blocks

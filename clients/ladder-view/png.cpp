@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
-#include <optional>
 #include <string>
 
 namespace ladder::view {
@@ -23,7 +22,8 @@ int run_png(const Options& o) {
   // Wait for the state as long as the server keeps talking (a far --at may take a while).
   Feed feed(c);
   bool told = false, first = true;
-  std::optional<std::chrono::steady_clock::time_point> paused_since;
+  bool was_paused = false;
+  std::chrono::steady_clock::time_point paused_since{};
   client::State state;
   client::SceneInfo info;
   while (true) {
@@ -56,15 +56,16 @@ int run_png(const Options& o) {
     }
     // Paused for --timeout on end, short of --at: a script waiting on the snapshot would wait for ever.
     if (s && s->paused) {
-      if (!paused_since) paused_since = std::chrono::steady_clock::now();
-      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - *paused_since).count() > o.timeout) {
+      if (!was_paused) paused_since = std::chrono::steady_clock::now();
+      was_paused = true;
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - paused_since).count() > o.timeout) {
         std::cerr << "ladder-view: the simulation stayed paused at t = " << fixed3(s->sim_time) << " s for "
                   << o.timeout << " s (--timeout), short of --at " << *o.at
                   << " s; resume it (ladderctl resume) or give a longer --timeout\n";
         return kNoServer;
       }
     } else {
-      paused_since.reset();
+      was_paused = false;
     }
   }
   // The real-time factor is measured once a second; give it that long to arrive.

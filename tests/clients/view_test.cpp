@@ -289,6 +289,35 @@ TEST(Draw, SideViewAndAscii) {
   EXPECT_GT(std::count(text.begin(), text.end(), '#'), 30) << text;
 }
 
+// The terminal's marks are characters where the hinges and grips are, not pixels read back: with hinge 3 locked,
+// hinge 5 broken and a grip, exactly one '@', two 'x' (the broken hinge's two ends, apart), one '*', an 'o' for each
+// of the three plain hinges, and none of them anywhere else (an antialiased edge of the hand or a side was read as
+// 'x' or 'o' before).
+TEST(Draw, AsciiMarksAreWhereTheHingesAndGripsAre) {
+  const client::SceneInfo info = classic_info(6);
+  client::State s = zigzag(6);
+  s.hinges[5].status = ladder_msg_BROKEN;
+  s.blocks[5].x += 0.03;  // fallen away: its hinge corner 3 cm from block 4's
+  ladder_msg_Grip g{};
+  g.block = 2;
+  g.target_x = 0.05;
+  g.target_y = -0.13;
+  s.grips.push_back(g);
+  const int cols = 80, rows = 60;
+  const Camera cam = view::fit(info, s, cols, 2 * rows);
+  const std::string text = view::render_ascii(cam, info, s, cols, rows);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '@'), 1) << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), 'x'), 2) << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), '*'), 1) << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), 'o'), 3) << text;
+  // Each where the picture has it.
+  const auto cell = [&](Point p) {
+    return text[static_cast<std::size_t>(std::floor(0.5 * p.y)) * (cols + 1) + static_cast<std::size_t>(std::floor(p.x))];
+  };
+  EXPECT_EQ(cell(cam.to_screen({g.target_x, g.target_y})), '*') << text;
+  for (const view::Mark& m : view::marks(cam, info, s)) EXPECT_EQ(cell(m.at), m.ch) << text;
+}
+
 // Rolling hinges (docs/model.md section 9), computed here apart from the viewer's own geometry: corner c of block i
 // has an arc of radius r centred r in from both edges (corners 0 and 1 on the +x side; corner 0 at the low end of
 // even blocks and the high end of odd ones), and a hinge's contact point is halfway between its two arc centres.
