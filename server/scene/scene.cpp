@@ -60,7 +60,8 @@ struct KeyDef {
 };
 
 constexpr std::array kKeys{
-    KeyDef{.name = "scene.name", .kind = Kind::String, .help = "title shown to the user"},
+    KeyDef{.name = "scene.name", .kind = Kind::String,
+           .help = "title shown to the user (default: the file's name without its extension)"},
     KeyDef{.name = "scene.description", .kind = Kind::String, .help = "what the scene shows"},
     KeyDef{.name = "ladder.blocks", .kind = Kind::Integer, .range = between(1, kMaxBlocks),
            .help = "number of blocks; without it, the length of ladder.masses"},
@@ -856,6 +857,7 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
   Scene s;
   s.source = source_name;
   r.get("scene.name", s.name);
+  if (s.name.empty()) s.name = std::filesystem::path(source_name).stem().string();  // a title all the same
   r.get("scene.description", s.description);
   read_ladder(r, s.ladder);
   r.get("ladder.depth", s.depth);
