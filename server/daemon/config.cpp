@@ -68,7 +68,13 @@ const std::vector<Key>& keys() {
       integer_key("server.domain", 0, 232, [](DaemonConfig& c, long long v) { c.server.domain = static_cast<int>(v); }),
       {"server.scene", [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.scene = path_in(n, d); }},
       {"server.scenes_dir",
-       [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.server.scenes_dir = path_in(n, d); }},
+       [](const toml::node& n, DaemonConfig& c, const fs::path& d) {
+         // Checked now: a `load` would otherwise fail much later, naming a folder nobody meant.
+         const std::string dir = path_in(n, d);
+         std::error_code ec;
+         if (!fs::is_directory(dir, ec)) throw std::invalid_argument("must be a folder of scenes: '" + dir + "' is not one");
+         c.server.scenes_dir = dir;
+       }},
       number_key("server.physics_rate", [](DaemonConfig& c, double v) { c.server.rates.physics = v; }),
       number_key("server.publish_rate", [](DaemonConfig& c, double v) { c.server.rates.publish = v; }),
       number_key("server.stats_rate", [](DaemonConfig& c, double v) { c.server.stats_rate = v; }),

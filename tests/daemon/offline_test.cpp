@@ -244,6 +244,8 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
                         Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
                         Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be >= 1 and at most"},
+                        Case{"[server]\nscenes_dir = \"no-such-folder\"\n",
+                             ":2:14: server.scenes_dir must be a folder of scenes: '"},
                         Case{"[server\n", ":1:8: "}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
     const Result r = ladderd("--config " + path("ladderd.toml"));
