@@ -76,10 +76,17 @@ std::string find_scene(const std::string& scene, const std::string& scenes_dir) 
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::is_regular_file(scene, ec)) return scene;
-  if (scene.find('/') != std::string::npos || scene.starts_with("."))
+  const auto not_a_folder = [&] {
+    if (fs::is_directory(scene, ec))
+      throw std::runtime_error("--scene " + scene + ": a folder, not a scene file (a scene is a .toml file)");
+  };
+  if (scene.find('/') != std::string::npos || scene.starts_with(".")) {
+    not_a_folder();
     throw std::runtime_error("--scene " + scene + ": no such file");
+  }
   const fs::path named = fs::path(scenes_dir) / (scene.ends_with(".toml") ? scene : scene + ".toml");
   if (fs::is_regular_file(named, ec)) return named.string();
+  not_a_folder();
   const std::string available = scene_names(scenes_dir);
   throw std::runtime_error("--scene " + scene + ": no such file, and no scene of that name in " + scenes_dir +
                            " (" + (available.empty() ? "none there" : "there: " + available) + ")");

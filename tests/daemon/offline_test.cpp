@@ -207,6 +207,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --record " + path("s.lcmlog"),
                              "--record is for the live server, not --offline"},
                         Case{scene + " --duration 1", "--duration is for --offline runs"},
+                        Case{"--offline --duration 1 --scene " + std::string(LADDER_SOURCE_DIR) + "/config",
+                             "/config: a folder, not a scene file"},
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
