@@ -223,12 +223,6 @@ class World {
   void set_drive(int part, Drive drive);  // makes the part kinematic, following the drive
   void release(int part);                 // the part becomes dynamic (a released hold)
   bool is_kinematic(int part) const { return parts_[part].kinematic; }
-  // Whether the body `part` belongs to is driven (the part itself, or welded to one that is): a force or an impulse
-  // on it moves nothing.
-  bool moves_with_a_drive(int part) {
-    ensure_built();
-    return bodies_[parts_[part].body].kinematic;
-  }
 
   // Hinges two particles while building a model whose velocities are already consistent: no velocity fix, and
   // the bodies and hinge rows are rebuilt once, before the next step (so building n hinges costs O(n)).
