@@ -88,7 +88,8 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   // The marks, one character each where the picture would have them (a cell is one pixel across, two down).
   for (const Mark& m : marks(cam, info, state)) {
     const double x = std::floor(m.at.x), y = std::floor(0.5 * m.at.y);
-    if (x >= 0 && x < cols && y >= 0 && y < rows) lines[static_cast<std::size_t>(y)][static_cast<std::size_t>(x)] = m.ch;
+    if (x >= 0 && x < cols && y >= 0 && y < rows)
+      lines[static_cast<std::size_t>(y)][static_cast<std::size_t>(x)] = m.ch;
   }
   // Block numbers at the centres, where the whole number lands on a block (its faces, sides or tapes).
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {

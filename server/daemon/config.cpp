@@ -72,7 +72,8 @@ const std::vector<Key>& keys() {
          // Checked now: a `load` would otherwise fail much later, naming a folder nobody meant.
          const std::string dir = path_in(n, d);
          std::error_code ec;
-         if (!fs::is_directory(dir, ec)) throw std::invalid_argument("must be a folder of scenes: '" + dir + "' is not one");
+         if (!fs::is_directory(dir, ec))
+           throw std::invalid_argument("must be a folder of scenes: '" + dir + "' is not one");
          c.server.scenes_dir = dir;
        }},
       number_key("server.physics_rate", [](DaemonConfig& c, double v) { c.server.rates.physics = v; }),
