@@ -61,11 +61,16 @@ std::string format_ack(const client::Ack& a) {
   return "refused: " + a.reason;
 }
 
-std::string no_server(const Connection& c) {
+// --timeout as the messages write it, e.g. "3".
+std::string timeout_text(const Connection& c) {
   char t[32];
   std::snprintf(t, sizeof t, "%g", c.timeout);
-  return "no ladderd with sim id '" + c.sim_id + "' on DDS domain " + std::to_string(c.domain) + " after " + t +
-         " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
+  return t;
+}
+
+std::string no_server(const Connection& c) {
+  return "no ladderd with sim id '" + c.sim_id + "' on DDS domain " + std::to_string(c.domain) + " after " +
+         timeout_text(c) + " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
 }
 
 Millis timeout_of(const Connection& c) { return Millis(static_cast<long>(c.timeout * 1000)); }
@@ -121,10 +126,8 @@ int send(Client& client, const Connection& c, const ladder_msg_Command& command)
   const auto ack = client.wait_ack(id, timeout_of(c));
   if (!ack) {
     // The server was found (connect()): it is there, but did not answer this one.
-    char t[32];
-    std::snprintf(t, sizeof t, "%g", c.timeout);
     std::cerr << "ladderctl: no answer from ladderd '" << c.sim_id << "' on DDS domain " << c.domain
-              << " to the command within " << t
+              << " to the command within " << timeout_text(c)
               << " s: it may be limiting this client's commands (its Stats count them: commands_rate_limited, "
                  "commands_unanswered), or it stopped, or the network lost them\n";
     return kNoServer;

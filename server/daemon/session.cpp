@@ -234,6 +234,9 @@ std::uint64_t Session::state_hash() const {
   return f.h;
 }
 
+// The server's own live keys, which set_param() takes before a setting reaches the scene.
+constexpr const char* kServerLiveKeys = "server.real_time_factor, server.publish_rate";
+
 Outcome Session::set_param(const std::string& setting) {
   const size_t eq = setting.find('=');
   const std::string key = setting.substr(0, eq);
@@ -257,12 +260,12 @@ Outcome Session::set_param(const std::string& setting) {
       return {false, setting + ": server.physics_rate cannot change while the server runs; set it in ladderd.toml"};
     } else {
       return {false, setting + ": unknown key " + key +
-                         " (server keys: server.real_time_factor, server.publish_rate)"};
+                         " (server keys: " + kServerLiveKeys + ")"};
     }
     return {};
   }
   try {
-    sim_->set(setting, "server.real_time_factor, server.publish_rate");
+    sim_->set(setting, kServerLiveKeys);
   } catch (const scene::SceneError& e) {
     return {false, e.what()};
   }
