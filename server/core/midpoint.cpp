@@ -381,12 +381,16 @@ void World::step_midpoint(double h) {
     m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
   };
   // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
-  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess.
+  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. The
+  // excess is at most the gap, so a gap no larger than the worst excess so far leaves it as it is, and its square
+  // root and floor are not computed (a NaN or infinite gap always is).
   const auto count_gap = [](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc) HOT_INLINE {
+    const double gap2 = gap.squaredNorm();
+    acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
+    if (gap2 <= acc.worst_gap2) return;
     const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
-    const double excess = std::max(gap.norm() - floor, 0.0);
+    const double excess = std::max(std::sqrt(gap2) - floor, 0.0);
     acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
-    acc.largest_gap2 = std::max(acc.largest_gap2, gap.squaredNorm());
   };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
