@@ -123,9 +123,19 @@ TEST(RollingLadder, MomentumIsKeptThroughAFlipFlop) {
     const double h0 = l.world().angular_momentum(parts, core::Vec2::Zero());
     int flips = 0;
     double dp = 0, dh = 0;
+    double h_before = h0, step_max = 0, flip_step = 0;  // the angular momentum's change in a step: the most in one
+                                                         // without the flip-flop, and in the one with it
     for (int i = 0; i < 1000; ++i) {
       l.advance(1e-3);
-      for (const Event& e : l.take_events()) flips += e.kind == EventKind::FlipFlop ? 1 : 0;
+      bool flipped = false;
+      for (const Event& e : l.take_events()) flipped = flipped || e.kind == EventKind::FlipFlop;
+      flips += flipped ? 1 : 0;
+      const double h = l.world().angular_momentum(parts, core::Vec2::Zero());
+      if (flipped)
+        flip_step = std::abs(h - h_before);
+      else
+        step_max = std::max(step_max, std::abs(h - h_before));
+      h_before = h;
       dp = std::max(dp, (l.world().linear_momentum(parts) - p0).norm());
       dh = std::max(dh, std::abs(l.world().angular_momentum(parts, core::Vec2::Zero()) - h0));
     }
@@ -134,6 +144,12 @@ TEST(RollingLadder, MomentumIsKeptThroughAFlipFlop) {
     EXPECT_LT(dp, 1e-14 * p0.norm()) << name;
     if (integrator == core::Integrator::SymplecticEuler) {
       EXPECT_LT(dh, 1e-12 * std::abs(h0)) << name;
+    } else {
+      // The midpoint step keeps angular momentum only to O(h^2) with rolling hinges (docs/model.md section 9:
+      // measured 2.2e-6 of it over the 1 s, 1.9e-11 kg m^2/s in a step at most); the switch adds nothing to that:
+      // the step with the flip-flop changes it no more than the others do (measured 2.6e-12).
+      EXPECT_LT(dh, 1e-5 * std::abs(h0)) << name;
+      EXPECT_LE(flip_step, step_max) << name;
     }
   }
 }
