@@ -162,7 +162,7 @@ Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c
   if (const auto known = senders_.find(writer); known != senders_.end()) return known->second;
   if (senders_.size() >= forget_above_) forget_departed_senders();
   Sender& s = senders_.try_emplace(writer, sh_.config, now).first->second;
-  s.client = text_of(c.client_id);
+  s.client = transport::printable(text_of(c.client_id));  // (for the log lines)
   s.participant = transport::writer_participant(command_r_.entity(), writer);
   check(s, now);
   if (!s.ready) {

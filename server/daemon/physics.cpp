@@ -17,6 +17,7 @@
 namespace ladder::daemon {
 
 using transport::copy_text;
+using transport::printable;
 using transport::text_of;
 
 void Physics::checkpoint() {
@@ -78,12 +79,14 @@ void Physics::take_commands() {
     a.command_seq = accepted_ + refused_;
     if (recording_) commands.push_back({c, scene_generation_, step, a.command_seq, r.accepted, r.reason});
     if (r.accepted && !r.reason.empty())  // accepted with a note (a reset that dropped the live settings)
-      spdlog::info("{} (command {}) from {}: accepted: {}", kind, c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} (command {}) from {}: accepted: {}", kind, c.command_id, printable(text_of(c.client_id)),
+                   printable(r.reason));
     else if (r.accepted)
-      spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id, text_of(c.client_id), t,
+      spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id, printable(text_of(c.client_id)), t,
                     taking_);
     else
-      spdlog::info("{} (command {}) from {}: refused: {}", kind, c.command_id, text_of(c.client_id), r.reason);
+      spdlog::info("{} (command {}) from {}: refused: {}", kind, c.command_id, printable(text_of(c.client_id)),
+                   printable(r.reason));
     // SceneInfo carries the live settings and the rates: published (and logged) again when they change. A setting
     // that leaves them as they were (a value they already had) sends none: at N = 10 000 a SceneInfo is 80 kB of
     // masses to every reader.
@@ -154,6 +157,11 @@ void Physics::run_step() {
   const auto t0 = Clock::now();
   try {
     session_.step();
+  } catch (const scene::Interrupted& e) {
+    interrupted_ = true;
+    spdlog::info("stopping: the step at t = {:.6f} s interrupted after {} of its {} sub-steps", finite_time(),
+                 e.substeps_taken, e.substeps);
+    return;
   } catch (const std::runtime_error& e) {
     spdlog::error("step failed, simulation paused: {}", e.what());
     with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", e.what(), 0, 0}); });
@@ -306,14 +314,19 @@ void Physics::run(const std::atomic<bool>& stop, bool realtime) {
   ticks_.reserve(250);
   push_scene();
   publish_state();
+  session_.set_interrupt([&stop, this] {
+    return stop.load(std::memory_order_relaxed) || sh_.abort.load(std::memory_order_relaxed);
+  });
   try {
     tick_loop(stop);
   } catch (...) {
+    session_.set_interrupt({});
     hand_over_ticks();  // the ticks before a failure are the ones worth reading
     throw;
   }
+  session_.set_interrupt({});
   sh_.notifier->send("STOPPING=1");
-  publish_state();
+  if (!interrupted_) publish_state();  // (a step cut short is no state of the simulation's clock)
   hand_over_ticks();
   sh_.physics_done = true;
   sh_.waiter->wake();

@@ -56,6 +56,7 @@ class Physics {
   Shared& sh_;
   std::unique_ptr<Session> owned_;
   Session& session_;
+  bool interrupted_ = false;  // a step was cut short by the stop (run_step): the loop ends
   double debt_ = 0;  // sim time owed to the real-time clock [s]
   std::vector<double> step_us_, late_us_;
   std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;

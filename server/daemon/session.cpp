@@ -1,7 +1,10 @@
 #include "daemon/session.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
@@ -16,10 +19,14 @@ namespace {
 
 using core::Vec2;
 
+// Six digits, or as many as it takes to tell the value from a limit it is compared with: an impulse of 1.0000001 is
+// "beyond the limit of 1", not "1 ... beyond the limit of 1".
 std::string number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
+  if (!std::isfinite(v) || std::strtod(buf, nullptr) == v) return buf;
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);  // the shortest text that reads back as v
+  return std::string(buf, r.ptr);
 }
 
 // Each check throws std::invalid_argument with the user-facing reason; apply() turns it into a refusal.
@@ -128,6 +135,7 @@ Session::Session(const scene::Scene& scene, std::string scenes_dir, Limits limit
 
 void Session::start(const scene::Scene& scene) {
   sim_ = std::make_unique<scene::Simulation>(scene);
+  sim_->set_interrupt(interrupted_);
   pending_steps_ = 0;
   failed_ = false;
   ++generation_;
@@ -152,8 +160,11 @@ Outcome Session::reset() {
   }
   const bool changed = scene::live_settings(base_) != scene::live_settings(sim_->scene());
   start(base_);
-  if (!changed) return {true, "the last step failed: the scene restarted (its settings were unchanged)"};
-  return {true, "the last step failed: the scene restarted with its own settings (the live settings dropped)"};
+  if (!changed)
+    return {true, "the last step failed: the scene restarted (its settings were unchanged), paused: resume runs it"};
+  return {true,
+          "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: resume "
+          "runs it"};
 }
 
 Outcome Session::apply(const CommandFields& f) {

@@ -12,6 +12,7 @@
 #include "scene/simulation.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -50,6 +51,12 @@ class Session {
     paused_ = true;
     pending_steps_ = 0;
     failed_ = true;
+  }
+
+  // Asked between the sub-steps of every step, of this scene and of those that follow (scene::Simulation).
+  void set_interrupt(std::function<bool()> interrupted) {
+    interrupted_ = std::move(interrupted);
+    sim_->set_interrupt(interrupted_);
   }
 
   scene::Simulation& sim() { return *sim_; }
@@ -92,6 +99,7 @@ class Session {
   void start(const scene::Scene& scene);
 
   std::unique_ptr<scene::Simulation> sim_;
+  std::function<bool()> interrupted_;
   scene::Scene base_;  // the scene as loaded, before any live setting: what a reset after a failure starts
   bool failed_ = false;
   std::string scenes_dir_;

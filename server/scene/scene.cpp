@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <functional>
 #include <limits>
 #include <map>
@@ -65,12 +66,14 @@ constexpr std::array kKeys{
     KeyDef{.name = "scene.description", .kind = Kind::String, .help = "what the scene shows"},
     KeyDef{.name = "ladder.blocks", .kind = Kind::Integer, .range = between(1, kMaxBlocks),
            .help = "number of blocks; without it, the length of ladder.masses"},
-    KeyDef{.name = "ladder.length", .kind = Kind::Number, .range = above(0), .help = "block length [m]"},
-    KeyDef{.name = "ladder.thickness", .kind = Kind::Number, .range = above(0), .help = "block thickness [m]"},
+    KeyDef{.name = "ladder.length", .kind = Kind::Number, .range = between(1e-3, 10), .help = "block length [m]"},
+    KeyDef{.name = "ladder.thickness", .kind = Kind::Number, .range = between(1e-4, 10), .help = "block thickness [m]"},
     KeyDef{.name = "ladder.depth", .kind = Kind::Number, .range = above(0),
            .help = "block depth into the page, drawn by the viewer only (the model is 2-D) [m]"},
-    KeyDef{.name = "ladder.mass", .kind = Kind::Number, .range = above(0), .help = "mass of each block [kg]"},
-    KeyDef{.name = "ladder.masses", .kind = Kind::Numbers, .range = above(0),
+    // The shape and the masses are bounded where the step has been run (the classic scene tipped, 3 s at 1 ms, at each
+    // bound and with masses alternating between the two); 1e-300 kg made the first state non-finite.
+    KeyDef{.name = "ladder.mass", .kind = Kind::Number, .range = between(1e-6, 1e6), .help = "mass of each block [kg]"},
+    KeyDef{.name = "ladder.masses", .kind = Kind::Numbers, .range = between(1e-6, 1e6),
            .help = "mass of each block in turn, one per block [kg]"},
     KeyDef{.name = "ladder.top", .kind = Kind::Choice, .choices = "held|pinned|free",
            .help = "top block held in a hand, pinned at its top-left corner, or free"},
@@ -86,7 +89,7 @@ constexpr std::array kKeys{
     KeyDef{.name = "ladder.end_radius", .kind = Kind::Number, .range = at_least(0),
            .help = "radius of the rounded block ends of a rolling hinge; 0 turns about the corner [m]",
            .range_text = ">= 0 and <= ladder.thickness / 2; > 0 needs ladder.hinge = \"rolling\""},
-    KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = above(0),
+    KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = at_least(1e-3),
            .help = "time the hand takes to turn the top block over [s]"},
     KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
            .help = "pull of a straight pair's contact above which a lock lets go, or a meeting with the stop is an "
@@ -97,8 +100,10 @@ constexpr std::array kKeys{
     // first steps fail, and 1e300 made the first state non-finite.
     KeyDef{.name = "initial.kick_omega", .kind = Kind::Number, .range = between(-1000, 1000),
            .help = "initial angular velocity of block 1 about its top hinge [rad/s]"},
-    KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = kAnyNumber,
-           .help = "initial rotation of the whole ladder about its top-left corner [rad]"},
+    // (A turn of 1e300 rad is finite, but its sine and cosine are rounding noise.)
+    KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = between(-2 * std::numbers::pi, 2 * std::numbers::pi),
+           .help = "initial rotation of the whole ladder about its top-left corner [rad]",
+           .range_text = ">= -2 pi and <= 2 pi"},
     KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(1e-7, 0.1), .help = "time step [s]"},
     KeyDef{.name = "sim.substeps", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "steps of sim.dt / sim.substeps taken per step of sim.dt (the server's tick)",
@@ -118,7 +123,9 @@ constexpr std::array kKeys{
            .range_text = "|g| <= 1000"},
     KeyDef{.name = "solver.kind", .kind = Kind::Choice, .choices = "newton|newton_linesearch",
            .help = "hinge constraint solver"},
-    KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = {0, 1e-6, true, false},
+    // Below about 1e-15 m the solve cannot get there (rounding leaves 4e-16 m on a 1000-block chain), so every solve
+    // ran to solver.max_iterations and a step of `long` with 1000 sub-steps took minutes.
+    KeyDef{.name = "solver.tolerance", .kind = Kind::Number, .range = between(1e-15, 1e-6),
            .help = "hinge position error the solver drives below [m]"},
     KeyDef{.name = "solver.max_iterations", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "iterations per nonlinear solve (a midpoint solve still short is rescued: docs/model.md 3.1)"},

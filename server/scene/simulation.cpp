@@ -33,6 +33,7 @@ void Simulation::step() {
   const int substeps = scene_.substeps;
   try {
     for (int i = 0; i < substeps; ++i) {
+      if (i > 0 && interrupted_ && interrupted_()) throw Interrupted(i, substeps);
       ladder_.advance(dt_ / substeps);
       max_step_residual_ = std::max(max_step_residual_, ladder_.world().last_step().residual);
     }

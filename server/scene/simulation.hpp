@@ -5,6 +5,8 @@
 #include "scene/scene.hpp"
 
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,9 +20,21 @@ struct Refusal {
   std::string reason;
 };
 
+// Thrown by Simulation::step() when its interrupt asked it to stop between two sub-steps: the ladder is left at the
+// end of the last sub-step taken, inside the step, and the simulation is not to be stepped again.
+struct Interrupted : std::exception {
+  int substeps_taken = 0, substeps = 0;
+  Interrupted(int taken, int of) : substeps_taken(taken), substeps(of) {}
+  const char* what() const noexcept override { return "step interrupted between two sub-steps"; }
+};
+
 class Simulation {
  public:
   explicit Simulation(const Scene& scene);
+
+  // Asked between two sub-steps of a step; true makes step() throw Interrupted there. A step of many sub-steps of a
+  // long chain can take minutes (sim.substeps up to 1000): a server that is told to stop does not wait for its end.
+  void set_interrupt(std::function<bool()> interrupted) { interrupted_ = std::move(interrupted); }
 
   // Advances one time step of dt (in scene().substeps equal steps), first applying every timeline command due by
   // the start of the step.
@@ -55,6 +69,7 @@ class Simulation {
   std::uint64_t clock_steps_ = 0;    // steps since then
   double max_step_residual_ = 0;
   std::vector<Refusal> refusals_;
+  std::function<bool()> interrupted_;
 };
 
 }  // namespace ladder::scene

@@ -14,6 +14,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -237,6 +238,27 @@ std::string text_of(const char (&src)[N]) {
   std::size_t n = 0;
   while (n < N && src[n] != '\0') ++n;
   return std::string(src, n);
+}
+
+// Text from a peer made safe for a log line: each control character (a newline would start a forged line) written
+// as \xNN, and a backslash as \\ so that the escape cannot be forged either.
+inline std::string printable(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c < 0x20 || c == 0x7f) {
+      constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    } else {
+      out += ch;
+    }
+  }
+  return out;
 }
 
 }  // namespace ladder::transport

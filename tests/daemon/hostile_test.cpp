@@ -162,14 +162,15 @@ std::vector<ladder_msg_Command> hostile_commands() {
 
 class Hostile : public ::testing::Test {
  protected:
-  void start() {
+  void start(const std::vector<std::string>& extra = {}) {
     const std::string name = test_name();
     sim_id_ = sim_id_for(name);
     domain_ = domain_for(name);
     log_path_ = std::string(LADDER_BINARY_DIR) + "/tests/" + name + ".log";
-    server_.emplace(std::vector<std::string>{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
-                                             std::to_string(domain_), "--sim-id", sim_id_},
-                    log_path_);
+    std::vector<std::string> args{std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain",
+                                  std::to_string(domain_), "--sim-id", sim_id_};
+    args.insert(args.end(), extra.begin(), extra.end());
+    server_.emplace(args, log_path_);
     client_.emplace(domain_, sim_id_, "hostile");  // first: it sets the project's DDS configuration
     scanner_.emplace(domain_);
     ASSERT_TRUE(client_->wait_for_server(kStart)) << "no ladderd on domain " << domain_ << "; its log:\n"
@@ -265,6 +266,44 @@ TEST_F(Hostile, NoHostileCommandMakesTheServerPublishANonFiniteNumberOrStop) {
   EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << server_->log();
 }
 
+// A client's text reaches the server's log escaped: a newline in a scene's name would otherwise start a line of the
+// client's making (here a forged "[error] step failed", which anyone grepping the log would take for the server's).
+TEST_F(Hostile, AClientsTextCannotForgeALogLine) {
+  start();
+  const std::string forged = "2026-12-05 09:00:00.000 [error] step failed, simulation paused: FORGED";
+  const client::Ack a = client_->call(cmd::load("x\n" + forged), kAnswer);
+  EXPECT_FALSE(a.accepted);
+  EXPECT_EQ(a.reason.rfind("no scene 'x\n" + forged + "' in ", 0), 0u) << a.reason;  // the client gets its own text
+  const auto deadline = Clock::now() + kAnswer;
+  while (server_->log().find("load (command") == std::string::npos && Clock::now() < deadline)
+    std::this_thread::sleep_for(Millis(20));
+  const std::string log = server_->log();
+  EXPECT_NE(log.find("refused: no scene 'x\\x0a" + forged + "' in "), std::string::npos) << log;
+  EXPECT_EQ(log.find("\n" + forged), std::string::npos) << log;
+}
+
+// A stop does not wait for the end of a long step: it comes between two of the step's sub-steps. (A step of 1000
+// sub-steps of a 20 000-block ladder takes seconds; with a solver tolerance that rounding cannot reach, which the
+// scene's ranges now refuse, a step of the 1000-block `long` took minutes, and so did SIGTERM.)
+TEST_F(Hostile, AStopCutsALongStepBetweenItsSubSteps) {
+  start({"--set", "ladder.blocks=20000", "--set", "sim.substeps=1000"});
+  ASSERT_TRUE(client_->wait_state([](const client::State&) { return true; }, kAnswer)) << server_->log();
+  std::this_thread::sleep_for(Millis(500));  // well inside the first step (each takes seconds)
+  server_->signal(SIGTERM);
+  const auto status = server_->wait_exit(Millis(60000));
+  ASSERT_TRUE(status.has_value()) << "ladderd did not stop";
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << server_->log();
+  const std::string log = server_->log();
+  const std::size_t at = log.find(" interrupted after ");
+  ASSERT_NE(at, std::string::npos) << log;
+  int taken = 0, of = 0;
+  ASSERT_EQ(std::sscanf(log.c_str() + at, " interrupted after %d of its %d sub-steps", &taken, &of), 2) << log;
+  EXPECT_EQ(of, 1000);
+  EXPECT_GE(taken, 1);
+  EXPECT_LT(taken, 1000);
+  EXPECT_NE(log.find("stopped: SIGTERM received"), std::string::npos) << log;
+}
+
 // A step longer than two ticks of sim time (sim.dt = 0.05 s against 1 ms ticks) still comes due: the loop's backlog
 // cap of two ticks kept it from ever stepping (set sim.dt=0.05 froze the simulation).
 TEST_F(Hostile, ACoarseStepStillRunsInRealTime) {
@@ -300,7 +339,7 @@ TEST_F(Hostile, AResetAfterAFailedStepRestoresTheScenesSettings) {
   const client::Ack reset = c.call(cmd::reset(), kAnswer);
   EXPECT_TRUE(reset.accepted);
   EXPECT_EQ(reset.reason,
-            "the last step failed: the scene restarted with its own settings (the live settings dropped)");
+            "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: resume runs it");
   const auto restored = c.wait_scene_info(kAnswer, [&](const client::SceneInfo& i) {
     return i.generation > own->generation;
   });

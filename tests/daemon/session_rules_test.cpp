@@ -72,6 +72,9 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   refused(*s, action(m::Poke{2, {kNan, 0}, {}}), "the impulse is nan, not a finite number");
   refused(*s, action(m::Poke{2, {1e6, 0}, {}}), "the impulse of 1e+06 N s is beyond the limit of 1 N s "
                                                   "(commands.max_impulse)");
+  // Just over a limit: as many digits as it takes to tell the value from the limit (six made it "1 ... beyond 1").
+  refused(*s, action(m::Poke{2, {1.0000001, 0}, {}}), "the impulse of 1.0000001 N s is beyond the limit of 1 N s "
+                                                        "(commands.max_impulse)");
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(kInf, 0)}), "the point is inf, not a finite number");
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(5, 5)}), "the point is ", false);
   refused(*s, action(m::Poke{0, {0.001, 0}, {}}), "impulse: the block is held and does not move freely");

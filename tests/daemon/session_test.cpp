@@ -183,7 +183,7 @@ TEST(SessionRanges, LiveSceneKeysNameTheKeyTheValueAndTheRange) {
   expect_refused(*s, set("sim.substeps=100000"),
                  "sim.substeps=100000: sim.substeps must be >= 1 and <= 1000 (got 100000)");
   expect_refused(*s, set("solver.tolerance=0"),
-                 "solver.tolerance=0: solver.tolerance must be > 0 and <= 1e-06 (got 0)");
+                 "solver.tolerance=0: solver.tolerance must be >= 1e-15 and <= 1e-06 (got 0)");
   expect_refused(*s, set("solver.max_iterations=1000000000"),
                  "solver.max_iterations=1000000000: solver.max_iterations must be >= 1 and <= 1000 (got 1000000000)");
   expect_refused(*s, set("sim.error_tolerance=1e-300"),
@@ -289,7 +289,7 @@ TEST(SessionReset, AfterAFailedStepResetRestoresTheScenesSettings) {
   EXPECT_TRUE(s->failed());
   o = s->apply(fields_of(command(ladder_msg_RESET)));
   EXPECT_TRUE(o.accepted);
-  EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
+  EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: resume runs it");
   EXPECT_EQ(scene::live_settings(s->sim().scene()), own);
   EXPECT_FALSE(s->failed());
   EXPECT_EQ(failures_in(*s, 100), 0);
@@ -315,7 +315,7 @@ TEST(SessionReset, ARealStepFailureIsUndoneByAReset) {
   EXPECT_TRUE(s.paused());
   EXPECT_TRUE(s.failed());
   const Outcome o = s.apply(fields_of(command(ladder_msg_RESET)));
-  EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped)");
+  EXPECT_EQ(o.reason, "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: resume runs it");
   EXPECT_NE(scene::live_settings(s.sim().scene()).find("damping.hinge=0\n"), std::string::npos);
   expect_accepted(s, command(ladder_msg_RESUME));
   expect_accepted(s, command(ladder_msg_TIP));

@@ -334,8 +334,19 @@ TEST(Errors, IntegerKeysRefuseFloats) {
 }
 
 TEST(Errors, OutOfRange) {
-  expect_error("[ladder]\nmass = -1\n", "<string>:2:8: ", {"ladder.mass must be > 0 (got -1)"});
-  expect_error("[ladder]\nlength = 0.0\n", "<string>:2:10: ", {"ladder.length must be > 0 (got 0)"});
+  expect_error("[ladder]\nmass = -1\n", "<string>:2:8: ", {"ladder.mass must be >= 1e-06 and <= 1000000 (got -1)"});
+  expect_error("[ladder]\nlength = 0.0\n", "<string>:2:10: ", {"ladder.length must be >= 0.001 and <= 10 (got 0)"});
+  // Values that used to be accepted and then broke the first step (1e-300 kg: a non-finite state), spun the solve to
+  // its iteration limit on every step (a tolerance rounding cannot reach), or turned by rounding noise (1e300 rad).
+  expect_error("[ladder]\nmass = 1e-300\n", "<string>:2:8: ",
+               {"ladder.mass must be >= 1e-06 and <= 1000000 (got 1e-300)"});
+  expect_error("[ladder]\nmasses = [0.025, 1e300]\nblocks = 2\n", "<string>:2:", {"ladder.masses", "(got 1e+300)"});
+  expect_error("[ladder]\ntip_duration = 1e-300\n", "<string>:2:16: ",
+               {"ladder.tip_duration must be >= 0.001 (got 1e-300)"});
+  expect_error("[initial]\ntilt = 1e300\n", "<string>:2:8: ",
+               {"initial.tilt must be >= -6.283185307179586 and <= 6.283185307179586 (got 1e+300)"});
+  expect_error("[solver]\ntolerance = 5e-324\n", "<string>:2:13: ",
+               {"solver.tolerance must be >= 1e-15 and <= 1e-06 (got 5e-324)"});
   expect_error("[ladder]\nhinge_inset = 0.5\n", "<string>:2:15: ",
                {"ladder.hinge_inset must be >= 0 and < 0.5 (got 0.5)"});
   expect_error("[sim]\ndt = 0.2\n", "<string>:2:6: ", {"sim.dt must be >= 1e-07 and <= 0.1 (got 0.2)"});
@@ -400,7 +411,8 @@ TEST(Errors, NonFiniteNumbersAreRefused) {
 }
 
 TEST(Errors, NegativeMass) {
-  expect_error("[ladder]\nmasses = [0.1, -0.2, 0.3]\n", "<string>:2:16: ", {"ladder.masses[1] must be > 0 (got -0.2)"});
+  expect_error("[ladder]\nmasses = [0.1, -0.2, 0.3]\n", "<string>:2:16: ",
+               {"ladder.masses[1] must be >= 1e-06 and <= 1000000 (got -0.2)"});
 }
 
 TEST(Errors, MassesOfTheWrongLength) {
@@ -476,7 +488,7 @@ TEST(Errors, FileErrorsNameTheFile) {
     load_scene(path);
     FAIL() << "no error";
   } catch (const SceneError& e) {
-    EXPECT_EQ(std::string(e.what()), path + ":2:8: ladder.mass must be > 0 (got -1)");
+    EXPECT_EQ(std::string(e.what()), path + ":2:8: ladder.mass must be >= 1e-06 and <= 1000000 (got -1)");
   }
   std::remove(path.c_str());
 }
@@ -486,7 +498,7 @@ TEST(Errors, OverrideErrorsNameTheOverride) {
     load_scene(scene_path("classic"), {"ladder.mass=-1"});
     FAIL() << "no error";
   } catch (const SceneError& e) {
-    EXPECT_EQ(std::string(e.what()), "--set ladder.mass=-1: ladder.mass must be > 0 (got -1)");
+    EXPECT_EQ(std::string(e.what()), "--set ladder.mass=-1: ladder.mass must be >= 1e-06 and <= 1000000 (got -1)");
   }
 }
 
@@ -624,6 +636,10 @@ TEST(Values, RollingHingeKeys) {
   expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 0.006\n", "<string>:4:14: ",
                {"ladder.end_radius must be at most half of ladder.thickness (got 0.006 m with a thickness of 0.01 m)"});
   expect_error("[ladder]\nend_radius = 0.001\n", "<string>:2:14: ", {"ladder.end_radius needs ladder.hinge = \"rolling\""});
+  expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = -0.001\n", "<string>:4:14: ",
+               {"ladder.end_radius must be", "(got -0.001)"});
+  expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = nan\n", "<string>:4:14: ",
+               {"ladder.end_radius must be finite (got nan)"});
   // A radius too small to place the hinge (the engine found the two arc centres at one point at 1e-300).
   expect_error("[ladder]\nthickness = 0.01\nhinge = \"rolling\"\nend_radius = 1e-300\n", "<string>:4:14: ",
                {"ladder.end_radius must be 0 (the corner hinge) or at least 1e-6 of ladder.thickness (got 1e-300 m"});
