@@ -1,5 +1,6 @@
 #include "replay.hpp"
 
+#include "directory.hpp"
 #include "ladderlcm/event_t.hpp"
 #include "ladderlcm/scene_t.hpp"
 #include "ladderlcm/state_t.hpp"
@@ -26,6 +27,7 @@ namespace {
 
 using transport::copy_text;
 std::atomic<bool> g_stop{false};
+constexpr double kNameCheckSeconds = 1.0;  // how long the replay looks for a ladder of its sim id first
 
 // What a viewer draws that a scene record has no field of its own for (ladder.depth, ladder.hinge,
 // ladder.end_radius): the scene made again from the record's text and overrides, as the re-run makes it, and its
@@ -173,6 +175,17 @@ int replay(const ReplayOptions& o) {
     reader = std::make_unique<transport::LogReader>(o.log);
   } catch (const std::exception& e) {
     std::cerr << "ladderctl: " << e.what() << "\n";
+    return 2;
+  }
+  // A sim id that a ladder on the domain already answers to (a live ladderd, or another replay) is refused: two
+  // publishers of one name would send the live server's clients a replay's states, and their commands to a replay,
+  // which takes none. (Discovery, as `ladderctl list`: a ladder's SceneInfo is kept for late joiners, so it comes
+  // within the time it takes DDS to find the other side.)
+  for (const client::LadderEntry& l : client::discover(o.domain, kNameCheckSeconds).ladders) {
+    if (l.sim_id != o.sim_id) continue;
+    std::cerr << "ladderctl: '" << o.sim_id << "' on DDS domain " << o.domain << " is already "
+              << (l.replay ? "a replay" : "served by a live ladderd") << " (host " << l.host
+              << "); give this replay another sim id with --as\n";
     return 2;
   }
   Publisher out(o.domain, o.sim_id);

@@ -278,6 +278,22 @@ TEST_F(Record, ACommandToAReplaySaysItIsOne) {
       << r.output;
 }
 
+// A replay may not take the sim id of a ladder that is on the domain: a live server's clients would get the replay's
+// states, and their commands would go to a replay, which takes none.
+TEST_F(Record, AReplayRefusesTheSimIdOfALiveLadder) {
+  start({"--record", log_});
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  start();  // a live server again, of the same sim id
+  const Result r = shell(kLadderctl + " replay " + log_ + " --as " + sim_id_ + " --domain " + std::to_string(domain_));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("'" + sim_id_ + "' on DDS domain " + std::to_string(domain_) +
+                          " is already served by a live ladderd"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("replaying "), std::string::npos) << r.output;
+}
+
 // A log is untrusted input: a state whose hinge status is none the message can carry (7) is skipped and counted,
 // and the replay goes on and ends normally.
 TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
