@@ -4,6 +4,7 @@
 #include "cli_checks.hpp"
 #include "list.hpp"
 #include "replay.hpp"
+#include "scene/scene.hpp"
 #include "session_plot.hpp"
 
 #include <CLI/CLI.hpp>
@@ -315,9 +316,14 @@ int status(Client& client, const Connection& c) {
                 static_cast<unsigned long long>(stats->commands_undecodable),
                 static_cast<unsigned long long>(stats->write_failures));
   }
-  std::printf("live settings:\n");
+  // SceneInfo's options also carry what the viewer draws from and cannot change live (ladder.depth, ladder.hinge,
+  // ladder.end_radius): listed apart, so that none of them looks like something `set` takes.
+  std::string live, fixed;
   std::istringstream lines(info->options);
-  for (std::string line; std::getline(lines, line);) std::printf("  %s\n", line.c_str());
+  for (std::string line; std::getline(lines, line);)
+    (scene::is_live_key(line.substr(0, line.find('='))) ? live : fixed) += "  " + line + "\n";
+  std::printf("live settings (set KEY VALUE):\n%s", live.c_str());
+  if (!fixed.empty()) std::printf("fixed for this scene (load it again to change them):\n%s", fixed.c_str());
   return kAccepted;
 }
 

@@ -98,6 +98,15 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
   EXPECT_NE(status.output.find("2 blocks"), std::string::npos) << status.output;  // free-chain, loaded above
   // Live settings last until the next load: free-chain's own (no damping) replaced damping.linear = 0.2.
   EXPECT_NE(status.output.find("damping.linear=0\n"), std::string::npos) << status.output;
+  // What the viewer draws from but `set` cannot change is listed apart from the live settings.
+  const std::size_t live = status.output.find("live settings (set KEY VALUE):\n");
+  const std::size_t fixed = status.output.find("fixed for this scene (load it again to change them):\n");
+  ASSERT_NE(live, std::string::npos) << status.output;
+  ASSERT_NE(fixed, std::string::npos) << status.output;
+  EXPECT_LT(live, status.output.find("  damping.linear=0\n"));
+  EXPECT_LT(status.output.find("  damping.linear=0\n"), fixed);
+  for (const char* key : {"  ladder.depth=", "  ladder.hinge=corner\n", "  ladder.end_radius=0\n"})
+    EXPECT_GT(status.output.find(key), fixed) << key << " in\n" << status.output;
 }
 
 TEST_F(Ladderctl, NoServerGivesTheTimeoutMessageAndCodeThree) {

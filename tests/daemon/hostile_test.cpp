@@ -339,7 +339,8 @@ TEST_F(Hostile, AResetAfterAFailedStepRestoresTheScenesSettings) {
   const client::Ack reset = c.call(cmd::reset(), kAnswer);
   EXPECT_TRUE(reset.accepted);
   EXPECT_EQ(reset.reason,
-            "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: resume runs it");
+            "the last step failed: the scene restarted with its own settings (the live settings dropped), paused: "
+            "resume runs it");
   const auto restored = c.wait_scene_info(kAnswer, [&](const client::SceneInfo& i) {
     return i.generation > own->generation;
   });

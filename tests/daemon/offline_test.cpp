@@ -191,7 +191,9 @@ TEST_F(Offline, BadSceneIsRefusedWithItsPosition) {
   std::ofstream(path("bad.toml")) << "[ladder]\nblocks = 4\nmass = -1\n";
   const Result r = ladderd("--offline --scene " + path("bad.toml") + " --duration 1 --summary " + path("sum.json"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find(path("bad.toml") + ":3:8: ladder.mass must be >= 1e-06 and <= 1000000 (got -1)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(path("bad.toml") + ":3:8: ladder.mass must be >= 1e-06 and <= 1000000 (got -1)"),
+            std::string::npos)
+      << r.output;
   EXPECT_FALSE(fs::exists(path("sum.json")));  // nothing was run, nothing written
 }
 
