@@ -11,10 +11,10 @@
 
 namespace ladder::client {
 
-// A finite number above 0 (strictly == true) or at least 0.
-inline CLI::Validator number_check(bool strictly) {
+// A finite number above 0 (strictly == true) or at least 0, and at most `most`.
+inline CLI::Validator number_check(bool strictly, double most = HUGE_VAL) {
   return CLI::Validator(
-      [strictly](std::string& text) -> std::string {
+      [strictly, most](std::string& text) -> std::string {
         errno = 0;
         char* end = nullptr;
         const double x = std::strtod(text.c_str(), &end);
@@ -22,11 +22,12 @@ inline CLI::Validator number_check(bool strictly) {
         if (text.empty() || end == text.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(x))
           return "'" + text + "' is not " + want;
         if (strictly ? !(x > 0) : !(x >= 0)) return "must be " + want + ", not " + text;
+        if (x > most) return "must be at most " + CLI::detail::to_string(most) + ", not " + text;
         return {};
       },
       strictly ? "POSITIVE" : "NONNEGATIVE");
 }
-inline CLI::Validator positive() { return number_check(true); }
+inline CLI::Validator positive(double most = HUGE_VAL) { return number_check(true, most); }
 inline CLI::Validator non_negative() { return number_check(false); }
 
 }  // namespace ladder::client

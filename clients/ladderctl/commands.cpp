@@ -346,8 +346,9 @@ struct Values {
 void add_connection(CLI::App& app, Connection& c) {
   app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
+  // (At most a million seconds: 1e10 overflowed the clock's nanoseconds and timed out at once.)
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
-      ->check(ladder::client::positive());
+      ->check(ladder::client::positive(1e6));
   app.add_option("--security", c.security,
                  "DDS Security: this client's identity folder DIR/NAME of scripts/make-pki (docs/security.md)");
 }
@@ -468,7 +469,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
       ->required()
       ->check(CLI::IsMember({"events", "stats", "state"}));
   w->add_flag("--json", v.watch.json, "one JSON object per line");
-  w->add_option("--rate", v.watch.rate, "most state lines per second in text (default 10; 0 = every state)");
+  w->add_option("--rate", v.watch.rate, "most state lines per second in text (default 10; 0 = every state)")
+      ->check(ladder::client::non_negative());
   w->add_option("--kinds", v.kinds, "with events: only these kinds, e.g. flip_flop,lock (flip_flop, impact, lock, "
                                     "unlock, break, join, solver_warning, solver_failure, command_refused)");
   w->callback([&] {

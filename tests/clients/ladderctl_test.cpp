@@ -79,6 +79,8 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"poke", 2, "BLOCK is required"},
       {"drag 3 1,x", 2, "is not a list of numbers"},
       {"watch everything", 2, "WHAT"},
+      {"watch state --rate -1", 2, "--rate: must be a number of 0 or more, not -1"},
+      {"--timeout 1e10 status", 2, "--timeout: must be at most 1e+06, not 1e10"},
       {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
       {"step 0", 2, "N: must be a number greater than 0, not 0"},
