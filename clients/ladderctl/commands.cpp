@@ -257,12 +257,25 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
   std::uint64_t seen_state = 0;
   const auto min_gap = std::chrono::duration<double>(rate > 0 ? 1.0 / rate : 0);
   auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
+  std::uint64_t last_event = 0;  // the last event's seq (the server numbers every event it publishes, from 1)
   while (!g_interrupted) {
     if (what == "events") {
       client.wait_state([](const client::State&) { return false; }, Millis(100));
-      for (const client::Event& e : client.take_events())
+      for (const client::Event& e : client.take_events()) {
+        // A gap in the numbers: events this client's reader lost (it keeps the last 64, and a client stopped with
+        // Ctrl-Z or too slow to read lets the rest go). Said on standard error, so that --json's lines stay clean;
+        // a lower number is a restarted server, which counts afresh.
+        if (last_event > 0 && e.seq > last_event + 1) {
+          std::fflush(stdout);
+          std::fprintf(stderr, "ladderctl: %llu events missed before this one (numbers %llu to %llu): this client "
+                               "did not read them in time\n",
+                       static_cast<unsigned long long>(e.seq - last_event - 1),
+                       static_cast<unsigned long long>(last_event + 1), static_cast<unsigned long long>(e.seq - 1));
+        }
+        last_event = e.seq;
         if (w.kinds.empty() || std::find(w.kinds.begin(), w.kinds.end(), e.kind) != w.kinds.end())
           print_event(e, json);
+      }
     } else if (what == "stats") {
       // Every new sample (once a second), paused or not: a paused server's step count stays where it is.
       const auto s = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(200));

@@ -1,6 +1,7 @@
 // ladderctl against a real ladderd over Cyclone DDS on loopback: exit codes, printed answers, the timeout
 // message, and the interactive prompt driven through a pseudo-terminal.
 #include "netns.hpp"
+#include "client.hpp"
 #include "process.hpp"
 #include "plot.hpp"
 #include "pty.hpp"
@@ -8,11 +9,13 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <regex>
 #include <set>
 #include <string>
+#include <thread>
 
 namespace ladder::test {
 namespace {
@@ -156,6 +159,57 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   EXPECT_EQ(r.output.find(" s  impact "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  lock "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
+}
+
+// watch events says how many events it missed: a watcher stopped (Ctrl-Z) while the paused server breaks and joins
+// a hinge 100 times gets only the last 64 of those 200 events (its reader keeps 64), and says on standard error which
+// numbers it missed.
+TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
+  ASSERT_EQ(ctl("pause").code, 0);
+  const std::string out = std::string(LADDER_BINARY_DIR) + "/tests/ctl-missed-" + std::to_string(getpid()) + ".txt";
+  Process watcher({kLadderctl, "watch", "events", "--domain", std::to_string(domain_), "--sim-id", sim_id_,
+                   "--timeout", "15"},
+                  out);
+  const auto wait_for = [&](const std::string& words) {
+    const auto deadline = Clock::now() + std::chrono::seconds(20);
+    while (watcher.log().find(words) == std::string::npos && Clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    return watcher.log().find(words) != std::string::npos;
+  };
+  client::Client c(domain_, sim_id_, "breaker");
+  ASSERT_TRUE(c.wait_for_server(std::chrono::milliseconds(15000)));
+  ASSERT_TRUE(wait_for("as they happen")) << watcher.log();
+  // Until the watcher prints one (its reader may not have met the server's writer yet: events are not kept for
+  // readers that come later).
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (watcher.log().find(" join ") == std::string::npos && Clock::now() < deadline) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_TRUE(wait_for(" join ")) << watcher.log();
+  watcher.signal(SIGSTOP);
+  for (int i = 0; i < 100; ++i) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+  }
+  watcher.signal(SIGCONT);
+  EXPECT_TRUE(wait_for("events missed before this one")) << watcher.log();
+  watcher.signal(SIGINT);
+  ASSERT_TRUE(watcher.wait_exit(std::chrono::seconds(10)).has_value());
+  const std::string log = watcher.log();
+  const std::size_t at = log.find("ladderctl: ");
+  ASSERT_NE(at, std::string::npos) << log;
+  unsigned long long missed = 0, from = 0, to = 0;
+  ASSERT_EQ(std::sscanf(log.c_str() + at, "ladderctl: %llu events missed before this one (numbers %llu to %llu)",
+                        &missed, &from, &to),
+            3)
+      << log;
+  EXPECT_EQ(to - from + 1, missed);
+  // 200 - 64 = 136 or a few less: the stop takes effect a moment after kill() returns, and the watcher may read
+  // the first events of the burst before it.
+  EXPECT_GE(missed, 100u) << log;
+  EXPECT_LE(missed, 136u) << log;
 }
 
 // watch stats prints every Stats sample (one a second), paused or not: it used to print a sample only when the step
