@@ -56,14 +56,21 @@ void within_reach(const Vec2& v, const char* name, double reach) {
                                 " m from the origin, beyond the reach of " + number(reach) + " m (commands.reach)");
 }
 
-// A point on block i: `offset` from its centre must lie inside the block (1 % slack for rounding).
-void on_block(const model::Ladder& l, int i, const Vec2& offset, const char* name) {
-  const double half_diagonal = 0.5 * std::hypot(l.spec().length, l.spec().thickness);
-  const double distance = std::hypot(offset.x(), offset.y());
-  if (distance > 1.01 * half_diagonal)
-    throw std::invalid_argument(std::string(name) + " is " + number(distance * 1e3) + " mm from block " +
-                                std::to_string(i) + "'s centre, outside the block (at most " +
-                                number(half_diagonal * 1e3) + " mm)");
+// A point on block i, `local` from its centre in the block's frame (x across its thickness, y along its length), must
+// lie in the block's rectangle (1 % slack for rounding). (A circle of the half-diagonal let a point 30 mm beside a
+// 13 mm thick block through.)
+void on_block(const model::Ladder& l, int i, const Vec2& local, const char* name) {
+  const double along = 0.5 * l.spec().length, across = 0.5 * l.spec().thickness;
+  if (std::abs(local.x()) > 1.01 * across || std::abs(local.y()) > 1.01 * along) {
+    const auto mm = [](double v) {  // four digits: beyond them the distance is rounding (1.1e-14 mm)
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.4g", std::abs(v * 1e3) < 1e-9 ? 0.0 : v * 1e3);
+      return std::string(buf);
+    };
+    throw std::invalid_argument(std::string(name) + " is " + mm(local.x()) + " mm across and " + mm(local.y()) +
+                                " mm along block " + std::to_string(i) + " from its centre, outside the block (at " +
+                                "most " + mm(across) + " mm across and " + mm(along) + " mm along)");
+  }
 }
 
 // A grip's stiffness: 0 (the default) to kMaxStiffness.
@@ -94,7 +101,8 @@ struct Check {
     l.check_block(p.block);
     if (p.at) {
       finite(*p.at, "the point");
-      on_block(l, p.block, *p.at - l.block_centre(p.block), "the point");
+      on_block(l, p.block, core::Rot::of(l.block_angle(p.block)).apply_inverse(*p.at - l.block_centre(p.block)),
+               "the point");
     }
   }
   void operator()(const model::Push& p) const {

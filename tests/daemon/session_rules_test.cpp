@@ -85,8 +85,19 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   refused(*s, action(m::Push{2, {1, 0}, {0, 0}, -1}), "the duration must be > 0 and at most 60 s "
                                                        "(commands.max_duration), not -1");
   refused(*s, action(m::Push{2, {1, 0}, {0, 0}, kNan}), "the duration is nan, not a finite number");
-  refused(*s, action(m::Push{2, {1, 0}, {0.5, 0}, 0.1}), "the point is 500 mm from block 2's centre, outside the "
-                                                          "block ", false);
+  refused(*s, action(m::Push{2, {1, 0}, {0.5, 0}, 0.1}), "the point is 500 mm across and 0 mm along block 2 from its "
+                                                          "centre, outside the block (at most 6.5 mm across and 32 mm "
+                                                          "along)");
+  // Within the half-diagonal (32.65 mm) but beside the 13 mm thick block: outside it.
+  refused(*s, action(m::Push{2, {1, 0}, {0.03, 0}, 0.1}), "the point is 30 mm across and 0 mm along block 2", false);
+  accepted(*s, action(m::Push{2, {0.001, 0}, {0.0065, -0.032}, 0.1}));  // a corner
+  // A poke's point is in the world: it is taken into the block's frame by the block's angle (block 2 hangs turned).
+  const model::Ladder& l = s->sim().ladder();
+  const core::Rot turn = core::Rot::of(l.block_angle(2));
+  ASSERT_GT(std::abs(l.block_angle(2)), 0.1);
+  refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(l.block_centre(2) + turn * Vec2(0.03, 0))}),
+          "the point is 30 mm across and ", false);
+  accepted(*s, action(m::Poke{2, {0.001, 0}, Vec2(l.block_centre(2) + turn * Vec2(0.006, 0.031))}));
   refused(*s, action(m::Grab{0, {0, 0}, {}, {}, 0}), "block 0 is held by the hand; grab another block");
   refused(*s, action(m::Grab{9, {0, 0}, {}, {}, 0}), "no block 9 (blocks are 0..5)");
   refused(*s, action(m::Grab{3, {0, 0}, Vec2(1e9, 0), {}, 0}), "the target is 1e+09 m from the origin, beyond the "
