@@ -94,7 +94,7 @@ TEST_F(Server, EveryCommandKindIsAcceptedWhenValid) {
   start();
   pause();
   expect_accepted(cmd::poke(3, 0.001, 0));
-  expect_accepted(cmd::poke_at(2, 0, 0.001, 0.0, -0.15));
+  expect_accepted(cmd::poke_at(2, 0, 0.001, 0.013, -0.15));  // 12 mm above block 2's centre (0.013, -0.162)
   expect_accepted(cmd::push(4, 0.01, 0, 0.05));
   expect_accepted(cmd::grab(5));
   expect_accepted(cmd::grab_to(3, 0.1, -0.2));
