@@ -444,8 +444,8 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
       throw std::runtime_error(why + " even with 1/" + std::to_string(1 << kMaxHalvings) + " of the time step at t = " +
                                format_number(world_.time()) + " s: the motion is too violent for sim.dt = " +
                                format_number(step_h_) +  // (h: a piece of it, when the step was cut at an event)
-                               " s and these settings (try a smaller sim.dt, or check masses, forces, damping and "
-                               "the tip duration)");
+                               " s and these settings (try a smaller sim.dt, or check masses, forces, grips, "
+                               "damping and the tip duration)");
     if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, why + ": steps redone in halves");
     halving_ = true;
     step_guarded(0.5 * h, depth + 1);
