@@ -82,8 +82,8 @@ void Physics::take_commands() {
       spdlog::info("{} (command {}) from {}: accepted: {}", kind, c.command_id, printable(text_of(c.client_id)),
                    printable(r.reason));
     else if (r.accepted)
-      spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id, printable(text_of(c.client_id)), t,
-                    taking_);
+      spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id,
+                    printable(text_of(c.client_id)), t, taking_);
     else
       spdlog::info("{} (command {}) from {}: refused: {}", kind, c.command_id, printable(text_of(c.client_id)),
                    printable(r.reason));
@@ -153,6 +153,7 @@ void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& st
 }
 
 void Physics::run_step() {
+  if (interrupted_) return;  // (the stop cut the last step short: no more, and the loop ends at once)
   dirty_ = true;
   const auto t0 = Clock::now();
   try {
@@ -363,6 +364,7 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
     take_commands();
     if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
     advance(period, start);
+    if (interrupted_) return;  // nothing of a step cut short is published
     tick_.commands = static_cast<std::uint32_t>(taken_);  // those of the wait before this tick and of its start
     taken_ = 0;  // commands applied between ticks and at the next tick's start share one commands.per_tick
     collect_events();
