@@ -265,9 +265,10 @@ TEST(Blocks, TenThousandTippedAtOneMillisecond) {
 // whips under the tension of the blocks below), at 1000 and 10 000 blocks for 2 s at 1 ms with the defaults: no step
 // redone in halves or failed (no solver_warning), nothing non-finite, the hinges closed below 1e-9 m, and the
 // undamped chain's energy (-5.9e3 and -5.9e5 J) kept to 1e-6 J (measured 3.4e-10 and 1.6e-9 J: the midpoint step
-// keeps it to the solver's tolerance). The whip's solves that the iteration limit cuts short (33 at 10 000 blocks) are rescued within their
-// step (docs/model.md section 3.1). At 100 000 blocks one step is redone in halves (docs/benchmarks.md, "The sweep
-// again"); that run takes minutes and is not a test. Under AddressSanitizer the 10 000-block chain runs 0.3 s.
+// keeps it to the solver's tolerance). The whip's solves that the iteration limit cuts short (33 at 10 000 blocks)
+// are rescued within their step (docs/model.md section 3.1). At 100 000 blocks one step is redone in halves
+// (docs/benchmarks.md, "The sweep again"); that run takes minutes and is not a test. Under AddressSanitizer the
+// 10 000-block chain runs 0.3 s.
 TEST(Blocks, FreeChainWhipsWithNoStepRedone) {
   for (const int n : {1000, 10000}) {
 #if defined(__SANITIZE_ADDRESS__)
