@@ -165,10 +165,11 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
 }
 
 // watch events says which events it missed: a watcher stopped (Ctrl-Z) while the paused server breaks and joins a
-// hinge 1000 times loses some of those 2001 events (its socket's buffer fills while it is stopped, and the server
-// keeps the last 64 to send again; measured: 379 to 1497 lost in six runs, two of them on a loaded machine), and says
+// hinge 1000 times loses some of those 2001 events (once it runs again its DDS thread delivers the backlog into a
+// reader that keeps 64, faster than ladderctl takes them; measured: 379 to 1497 lost in six runs, two of them on a
+// loaded machine), and says
 // on standard error which numbers it missed. Every number from the first event printed to the last is either printed
-// (--json has "seq") or in exactly one of the gaps said.
+// (--json has "seq") or in exactly one of the gaps said: without the gaps said, the lost numbers would be missing.
 TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   constexpr int kPairs = 1000;
   ASSERT_EQ(ctl("pause").code, 0);
@@ -201,8 +202,11 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   }
   ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);  // one more: 2 kPairs + 1 events in all
   watcher.signal(SIGCONT);
-  EXPECT_TRUE(wait_for("events missed before this one")) << watcher.log();
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the last event read
+  const auto read_all = Clock::now() + std::chrono::seconds(20);  // until the last event (a break) is printed
+  while (watcher.log().find("\"seq\":" + std::to_string(2 * kPairs + 1)) == std::string::npos &&
+         watcher.log().find("numbers ") == std::string::npos && Clock::now() < read_all)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
   watcher.signal(SIGINT);
   ASSERT_TRUE(watcher.wait_exit(std::chrono::seconds(10)).has_value());
   const std::string log = watcher.log();
@@ -225,8 +229,13 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   EXPECT_EQ(seen.size(), end - first + 1) << "a number neither printed nor said missing\n" << log;
   for (const auto& [k, count] : seen) EXPECT_EQ(count, 1) << "number " << k << " printed or missed twice\n" << log;
   EXPECT_GE(end - first + 1, 2u * kPairs + 1) << log;  // the burst and the last break were all accounted for
-  EXPECT_GT(missed_total, 0u) << log;
   EXPECT_LE(missed_total, 2u * kPairs + 1 - 64) << log;
+#if !defined(__SANITIZE_ADDRESS__)
+  // Whether events are lost depends on how fast the watcher's DDS thread fills its reader after the stop against
+  // how fast it takes them: in the plain build it lost some in every run (8 of 8, two on a loaded machine); under
+  // AddressSanitizer it kept up with all 2001 once, so there the test checks only the accounting above.
+  EXPECT_GT(missed_total, 0u) << log;
+#endif
 }
 
 // watch stats prints every Stats sample (one a second), paused or not: it used to print a sample only when the step
