@@ -11,6 +11,7 @@
 #include <string_view>
 #include <algorithm>
 #include <cctype>
+#include <sstream>
 
 namespace ladder::daemon {
 
@@ -77,7 +78,11 @@ const std::vector<Key>& keys() {
          c.server.scenes_dir = dir;
        }},
       number_key("server.physics_rate", [](DaemonConfig& c, double v) { c.server.rates.physics = v; }),
-      number_key("server.publish_rate", [](DaemonConfig& c, double v) { c.server.rates.publish = v; }),
+      number_key("server.publish_rate",
+                 [](DaemonConfig& c, double v) {
+                   c.server.rates.publish = v;
+                   c.publish_rate_given = true;
+                 }),
       number_key("server.stats_rate", [](DaemonConfig& c, double v) { c.server.stats_rate = v; }),
       number_key("server.real_time_factor", [](DaemonConfig& c, double v) { c.server.rates.real_time_factor = v; }),
       integer_key("server.realtime_priority", 0, 99,
@@ -113,6 +118,12 @@ const std::vector<Key>& keys() {
   return k;
 }
 
+std::string shortest(double v) {
+  std::ostringstream o;
+  o << v;
+  return o.str();
+}
+
 void positive(double v, double hi, const char* key, const char* bound = nullptr) {
   if (!(v > 0 && v <= hi))
     throw ConfigError(std::string(key) + " must be > 0 and at most " +
@@ -132,7 +143,9 @@ void check_config(const DaemonConfig& c) {
   positive(s.rates.physics, 100'000, "server.physics_rate");
   // The same bounds as `set` (session.hpp): below them the server would stop publishing or freeze the simulation.
   if (!(s.rates.publish >= kMinPublishRate && s.rates.publish <= s.rates.physics))
-    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate", "server.publish_rate");
+    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" + shortest(s.rates.publish) +
+                          " states a second against " + shortest(s.rates.physics) + " ticks a second)",
+                      "server.publish_rate");
   positive(s.stats_rate, 100, "server.stats_rate");
   const double rtf = s.rates.real_time_factor;
   if (!(rtf == 0 || (rtf >= kMinRealTimeFactor && rtf <= kMaxRealTimeFactor)))

@@ -51,6 +51,9 @@ struct DaemonConfig {
   std::string log_level = "info";
   std::string log_file;  // empty = standard error only
   std::string security;  // DDS Security: the server's identity folder (scripts/make-pki); empty = none
+  // Whether server.publish_rate was named (in the file or on the command line). When it was not, the default of 60
+  // states a second is lowered to the physics rate if that is lower (`ladderd --rate 30` publishes 30 a second).
+  bool publish_rate_given = false;
 };
 
 class ConfigError : public std::runtime_error {

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 #include <optional>
@@ -37,8 +38,8 @@ int main(int argc, char** argv) {
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
   auto* rate =
       app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time")->capture_default_str();
-  auto* publish =
-      app.add_option("--publish-rate", c.server.rates.publish, "states published per second")->capture_default_str();
+  auto* publish = app.add_option("--publish-rate", c.server.rates.publish,
+                                 "states published per second (default 60, or the physics rate when that is lower)");
   auto* rtf = app.add_option("--rtf", c.server.rates.real_time_factor,
                              "real-time factor: sim seconds per wall second, 0 = as fast as possible")
                   ->capture_default_str();
@@ -89,7 +90,11 @@ int main(int argc, char** argv) {
     if (domain->count()) c.server.domain = cli.server.domain;
     if (sim_id->count()) c.server.sim_id = cli.server.sim_id;
     if (rate->count()) c.server.rates.physics = cli.server.rates.physics;
-    if (publish->count()) c.server.rates.publish = cli.server.rates.publish;
+    if (publish->count()) {
+      c.server.rates.publish = cli.server.rates.publish;
+      c.publish_rate_given = true;
+    }
+    if (!c.publish_rate_given) c.server.rates.publish = std::min(c.server.rates.publish, c.server.rates.physics);
     if (rtf->count()) c.server.rates.real_time_factor = cli.server.rates.real_time_factor;
     if (realtime->count()) c.server.realtime_priority = cli.server.realtime_priority;
     if (spin->count()) c.server.spin_us = cli.server.spin_us;
@@ -103,11 +108,12 @@ int main(int argc, char** argv) {
     daemon::setup_logging(c);
   } catch (const std::exception& e) {
     // A value checked under its configuration key also names the option it came from, when it came from one.
-    std::string why = e.what();
+    std::string why = e.what(), given;
     for (const auto& [key, option] : {std::pair{"server.physics_rate", rate}, {"server.publish_rate", publish},
                                       {"server.real_time_factor", rtf}, {"server.spin_us", spin}})
       if (option->count() && why.find(key) != std::string::npos)
-        why += " (given as " + option->get_name() + " " + option->as<std::string>() + ")";
+        given += (given.empty() ? "" : " and ") + option->get_name() + " " + option->as<std::string>();
+    if (!given.empty()) why += " (given as " + given + ")";
     std::cerr << "ladderd: " << why << "\n";
     return 2;
   }

@@ -226,8 +226,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{scene + " --record /no/such/dir/s.lcmlog",
                              "cannot create the session log '/no/such/dir/s.lcmlog': No such file or directory"},
                         Case{scene + " --publish-rate 0.5",
-                             "server.publish_rate must be >= 1 and at most server.physics_rate (given as "
-                             "--publish-rate 0.5)"}}) {
+                             "server.publish_rate must be >= 1 and at most server.physics_rate (0.5 states a second "
+                             "against 1000 ticks a second) (given as --publish-rate 0.5)"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
@@ -247,7 +247,9 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[log]\nlevel = \"loud\"\n", ":2:9: log.level must be trace"},
                         Case{"[server]\nrealtime_priority = 100\n", ":2:21: server.realtime_priority must be from 0 to 99"},
                         Case{"[server]\nspin_us = 600\n", ":2:11: server.spin_us must be from 0 to half the tick period (500 us"},
-                        Case{"[server]\nphysics_rate = 30\n", "ladderd.toml: server.publish_rate must be >= 1 and at most"},
+                        Case{"[server]\nphysics_rate = 30\npublish_rate = 60\n",
+                             "ladderd.toml:3:16: server.publish_rate must be >= 1 and at most server.physics_rate (60 "
+                             "states a second against 30 ticks a second)"},
                         Case{"[server]\nscenes_dir = \"no-such-folder\"\n",
                              ":2:14: server.scenes_dir must be a folder of scenes: '"},
                         Case{"[server\n", ":1:8: "}}) {
@@ -264,6 +266,25 @@ TEST_F(Offline, ShippedConfigIsValid) {
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.output.find("ladderd.toml"), std::string::npos) << r.output;  // refused for --rtf, not the file
   EXPECT_NE(r.output.find("server.real_time_factor"), std::string::npos) << r.output;
+}
+
+// A physics rate below the default 60 states a second lowers the publish rate to it when that is not given (before,
+// `ladderd --rate 30` was refused for the publish rate nobody had named); one given above it is still refused.
+TEST_F(Offline, APhysicsRateBelowSixtyHertzPublishesAtIt) {
+  const std::string domain = std::to_string(1 + getpid() % 230), id = "rate30-" + std::to_string(getpid());
+  ladder::test::Process server({kLadderd, "--rate", "30", "--domain", domain, "--sim-id", id}, path("server.log"));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (server.log().find("serving") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_NE(server.log().find(" 30 Hz physics, 30 Hz states"), std::string::npos) << server.log();
+  server.signal(SIGTERM);
+  EXPECT_TRUE(server.wait_exit(std::chrono::seconds(10)).has_value()) << server.log();
+  const Result r = ladderd("--rate 30 --publish-rate 60 --domain " + domain);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("server.publish_rate must be >= 1 and at most server.physics_rate (60 states a second "
+                          "against 30 ticks a second) (given as --rate 30 and --publish-rate 60)"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST_F(Offline, KeysListsEverySceneKey) {
