@@ -1,5 +1,7 @@
 #include "daemon/session.hpp"
 
+#include <toml++/toml.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -253,6 +255,18 @@ std::uint64_t Session::state_hash() const {
   return f.h;
 }
 
+// `text` as a TOML integer or float, if it is one and nothing else.
+std::optional<double> toml_number(const std::string& text) {
+  try {
+    const toml::table t = toml::parse("v = " + text);
+    if (t.size() != 1) return std::nullopt;
+    if (const auto* i = t["v"].as_integer()) return static_cast<double>(i->get());
+    if (const auto* f = t["v"].as_floating_point()) return f->get();
+  } catch (const toml::parse_error&) {
+  }
+  return std::nullopt;
+}
+
 // The server's own live keys, which set_param() takes before a setting reaches the scene.
 constexpr const char* kServerLiveKeys = "server.real_time_factor, server.publish_rate";
 
@@ -261,10 +275,11 @@ Outcome Session::set_param(const std::string& setting) {
   const std::string key = setting.substr(0, eq);
   if (key.starts_with("server.")) {
     if (eq == std::string::npos) return {false, setting + ": expected key=value"};
-    const std::string text = setting.substr(eq + 1);
-    char* end = nullptr;
-    const double v = std::strtod(text.c_str(), &end);
-    const bool is_number = !text.empty() && end == text.c_str() + text.size() && std::isfinite(v);
+    // Read as TOML, as the scene's keys are (`sim.dt=1e-3`, `0x10`, `1_000` alike); strtod took `0x10` but not
+    // `1_000`, and ` 5`.
+    const std::optional<double> toml_value = toml_number(setting.substr(eq + 1));
+    const double v = toml_value.value_or(0);
+    const bool is_number = toml_value && std::isfinite(v);
     if (key == "server.real_time_factor") {
       if (!is_number || !(v == 0 || (v >= kMinRealTimeFactor && v <= kMaxRealTimeFactor)))
         return {false, setting + ": server.real_time_factor must be a number from " + number(kMinRealTimeFactor) +

@@ -427,6 +427,19 @@ std::string Ladder::diverged(const core::Energy& e0, double h) const {
   return {};
 }
 
+std::string Ladder::too_violent(double h, const std::string& usual) const {
+  double far = 0;
+  for (int i = 0; i < world_.part_count(); ++i) far = std::max(far, world_.part_position(i).cwiseAbs().maxCoeff());
+  // A coordinate of magnitude `far` is held to within its spacing, 2^-52 far or more: past 1e-8 m (4.5e7 m out)
+  // the hinges cannot close to within 1 % of the 1e-6 m the watchdog allows, whatever the step.
+  const double spacing = std::nextafter(far, HUGE_VAL) - far;
+  if (spacing > 1e-8)
+    return "the ladder is " + format_number(far) + " m from the origin, where coordinates are rounded to " +
+           format_number(spacing) + " m, too coarse for its hinges: no smaller sim.dt can help (a free ladder falls "
+           "for ever; reset it)";
+  return "the motion is too violent for sim.dt = " + format_number(h) + " s and these settings (" + usual + ")";
+}
+
 void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
   const core::Energy e0 = world_.energy();
   if (start) {
@@ -442,10 +455,10 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
     world_.restore(*start);
     if (depth >= kMaxHalvings)
       throw std::runtime_error(why + " even with 1/" + std::to_string(1 << kMaxHalvings) + " of the time step at t = " +
-                               format_number(world_.time()) + " s: the motion is too violent for sim.dt = " +
-                               format_number(step_h_) +  // (h: a piece of it, when the step was cut at an event)
-                               " s and these settings (try a smaller sim.dt, or check masses, forces, grips, "
-                               "damping and the tip duration)");
+                               format_number(world_.time()) + " s: " +
+                               too_violent(step_h_,  // (h: a piece of it, when the step was cut at an event)
+                                           "try a smaller sim.dt, or check masses, forces, grips, damping and the "
+                                           "tip duration"));
     if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, why + ": steps redone in halves");
     halving_ = true;
     step_guarded(0.5 * h, depth + 1);
@@ -541,8 +554,7 @@ void Ladder::advance_by(double h) {
   // 5.2 cm at sim.dt = 0.1 s in the classic scene). Only then, so that a quiet step pays nothing.
   if ((events_.size() > events_before || halving_) && !(world_.max_hinge_error() < 1e-6))
     throw std::runtime_error("a hinge was left " + format_number(world_.max_hinge_error()) + " m apart at t = " +
-                             format_number(world_.time()) + " s: the motion is too violent for sim.dt = " +
-                             format_number(h) + " s and these settings (try a smaller sim.dt)");
+                             format_number(world_.time()) + " s: " + too_violent(h, "try a smaller sim.dt"));
 }
 
 // Finds the first hinge to cross into a forbidden quadrant during the step of length h from `start` (the world is

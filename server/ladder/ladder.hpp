@@ -218,6 +218,9 @@ class Ladder {
   void emit(EventKind kind, int k, double energy, std::string detail = {});
   void advance_by(double h);  // advance() without the grips' forces and the adaptive walk
   std::string diverged(const core::Energy& e0, double h) const;
+  // Why a step failed, for its message: the motion too violent for the step h (advising `usual`), unless the ladder
+  // is so far from the origin that rounding alone keeps its hinges apart, which no smaller step can help.
+  std::string too_violent(double h, const std::string& usual) const;
   // `start`: the world as it is now, when the caller has saved it already.
   void step_guarded(double h, int depth, const core::Snapshot* start = nullptr);
   void apply_grips(double h);

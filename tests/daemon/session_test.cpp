@@ -147,8 +147,17 @@ TEST(SessionRanges, PublishRateIsAtLeastOneHertz) {
   expect_refused(*s, set("server.publish_rate=nan"), "server.publish_rate=nan" + range);
   expect_refused(*s, set("server.publish_rate=1001"), "server.publish_rate=1001" + range);
   expect_refused(*s, set("server.publish_rate=-0"), "server.publish_rate=-0" + range);
+  expect_refused(*s, set("server.publish_rate=30\nv=2"), "server.publish_rate=30\nv=2" + range);
+  expect_refused(*s, set("server.publish_rate=\"30\""), "server.publish_rate=\"30\"" + range);
   expect_accepted(*s, set("server.publish_rate=1"));
   EXPECT_EQ(s->rates().publish, 1);
+  // Numbers as TOML writes them, as for the scene's keys: underscores, hexadecimal, exponents.
+  expect_accepted(*s, set("server.publish_rate=1_0"));
+  EXPECT_EQ(s->rates().publish, 10);
+  expect_accepted(*s, set("server.publish_rate=0x20"));
+  EXPECT_EQ(s->rates().publish, 32);
+  expect_accepted(*s, set("server.publish_rate=2.5e1"));
+  EXPECT_EQ(s->rates().publish, 25);
 }
 
 TEST(SessionRanges, RealTimeFactorIsZeroOrAtLeastOneHundredth) {
