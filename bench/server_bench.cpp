@@ -228,7 +228,7 @@ int run_bench(int argc, char** argv) {
   app.add_option("--subscribers", subscribers, "subscriber counts")->delimiter(',');
   app.add_option("--seconds", seconds, "measuring time per configuration [s]");
   app.add_option("--commands", commands, "commands sent one after another for the ack latency");
-  app.add_option("--domain", domain, "DDS domain id to use");
+  app.add_option("--domain", domain, "DDS domain id to use")->check(CLI::Range(0, ladder::transport::kMaxDomain));
   app.add_option("--ladderd", ladderd, "the server binary");
   std::vector<std::string> settings;
   app.add_option("--set", settings, "KEY=VALUE passed to ladderd, e.g. sim.accuracy=fast (repeatable)");

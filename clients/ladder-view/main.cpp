@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
   std::string size, view;
   CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
   app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
-  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, 232));
+  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, ladder::transport::kMaxDomain));
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
       ->check(ladder::client::positive());

@@ -66,7 +66,7 @@ Key integer_key(std::string_view name, long long lo, long long hi, F set) {
 const std::vector<Key>& keys() {
   static const std::vector<Key> k{
       {"server.sim_id", [](const toml::node& n, DaemonConfig& c, const fs::path&) { c.server.sim_id = text(n); }},
-      integer_key("server.domain", 0, 232, [](DaemonConfig& c, long long v) { c.server.domain = static_cast<int>(v); }),
+      integer_key("server.domain", 0, transport::kMaxDomain, [](DaemonConfig& c, long long v) { c.server.domain = static_cast<int>(v); }),
       {"server.scene", [](const toml::node& n, DaemonConfig& c, const fs::path& d) { c.scene = path_in(n, d); }},
       {"server.scenes_dir",
        [](const toml::node& n, DaemonConfig& c, const fs::path& d) {

@@ -32,8 +32,8 @@ int main(int argc, char** argv) {
                  "scene file (TOML), or the name of one in the scenes folder (e.g. double-ripple); default: the "
                  "built-in classic toy at rest");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
-  auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-232)")
-                     ->check(CLI::Range(0, 232))
+  auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-231)")
+                     ->check(CLI::Range(0, transport::kMaxDomain))
                      ->capture_default_str();
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
   auto* rate =

@@ -103,6 +103,11 @@ void apply_profile(Qos& q, Profile p, Side side = Side::Writer);
 // How many acknowledgements the server's writer keeps for readers that have not confirmed them yet. A reader further
 // behind than this loses the oldest (it was not taking them); a server's commands.burst stays below it.
 inline constexpr std::int32_t kAckDepth = 4096;
+// The largest domain id every participant can use with the shipped configurations: DDS's port mapping puts a
+// participant's unicast ports at 7400 + 250 domain + 10 + 2 index (and + 1), and config/cyclonedds*.xml allow
+// indices up to 64, so 232 (the mapping's own limit) would put the last ones past port 65535 (Cyclone then logs a
+// failed write to port 65536 every few seconds).
+inline constexpr int kMaxDomain = 231;
 
 // Routes Cyclone's own warnings and errors (which it would print to stderr) to `sink`, and counts the samples of
 // `topic` that Cyclone could not deserialize (and so never delivered): a hostile or mismatched writer's. The sink
