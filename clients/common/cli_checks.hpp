@@ -19,8 +19,8 @@ inline CLI::Validator number_check(bool strictly, double most = HUGE_VAL) {
         char* end = nullptr;
         const double x = std::strtod(text.c_str(), &end);
         const std::string want = strictly ? "a number greater than 0" : "a number of 0 or more";
-        if (text.empty() || end == text.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(x))
-          return "'" + text + "' is not " + want;
+        if (text.empty() || end == text.c_str() || *end != '\0' || !std::isfinite(x)) return "'" + text + "' is not " + want;
+        if (errno == ERANGE) return "'" + text + "' is too close to 0 to be told from it";
         if (strictly ? !(x > 0) : !(x >= 0)) return "must be " + want + ", not " + text;
         if (x > most) return "must be at most " + CLI::detail::to_string(most) + ", not " + text;
         return {};
@@ -28,6 +28,47 @@ inline CLI::Validator number_check(bool strictly, double most = HUGE_VAL) {
       strictly ? "POSITIVE" : "NONNEGATIVE");
 }
 inline CLI::Validator positive(double most = HUGE_VAL) { return number_check(true, most); }
-inline CLI::Validator non_negative() { return number_check(false); }
+inline CLI::Validator non_negative(double most = HUGE_VAL) { return number_check(false, most); }
+
+// A finite number from lo to hi (CLI::Range lets a NaN through: it compares, and every comparison with NaN is false).
+inline CLI::Validator finite_range(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        errno = 0;
+        char* end = nullptr;
+        const double x = std::strtod(text.c_str(), &end);
+        if (text.empty() || end == text.c_str() || *end != '\0' || !std::isfinite(x) || !(x >= lo && x <= hi))
+          return "'" + text + "' is not a number from " + CLI::detail::to_string(lo) + " to " +
+                 CLI::detail::to_string(hi);
+        return {};
+      },
+      "NUMBER");
+}
+
+// A DDS domain id, 0 to `most`, in words (CLI::Range says "Value text not in range" for a word).
+inline CLI::Validator domain_check(int most) {
+  return CLI::Validator(
+      [most](std::string& text) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        const long v = std::strtol(text.c_str(), &end, 10);
+        if (text.empty() || end == text.c_str() || *end != '\0' || errno == ERANGE || v < 0 || v > most)
+          return "'" + text + "' is not a DDS domain id (0 to " + std::to_string(most) + ")";
+        return {};
+      },
+      "INT");
+}
+
+// The first empty argument on a command line, in words, or "" if none is. An empty argument is most often a shell
+// variable that was not set (--security "$DIR"), and every option would take it as its default: a client would then
+// run without DDS Security, or on block 0.
+inline std::string empty_argument(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (argv[i][0] == '\0')
+      return std::string("argument ") + std::to_string(i) + " is empty" +
+             (i > 1 ? std::string(" (after '") + argv[i - 1] + "')" : std::string()) +
+             "; an unset shell variable? Every option needs a value";
+  return {};
+}
 
 }  // namespace ladder::client

@@ -3,6 +3,8 @@
 #include "rounded.hpp"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -733,6 +735,22 @@ std::vector<Mark> marks(const Camera& camera, const client::SceneInfo& info, con
     if (g.block >= 0 && static_cast<std::size_t>(g.block) < s.blocks.size())
       out.push_back({v.cam.to_screen({g.target_x, g.target_y}), '*'});
   return out;
+}
+
+std::string write_png(cairo_surface_t* surface, const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) return std::strerror(errno);
+  const auto put = [](void* file, const unsigned char* data, unsigned int length) {
+    return std::fwrite(data, 1, length, static_cast<std::FILE*>(file)) == length ? CAIRO_STATUS_SUCCESS
+                                                                                  : CAIRO_STATUS_WRITE_ERROR;
+  };
+  const cairo_status_t st = cairo_surface_write_to_png_stream(surface, put, f);
+  const int why = errno;
+  const bool closed = std::fclose(f) == 0;
+  if (st == CAIRO_STATUS_SUCCESS && closed) return {};
+  std::remove(path.c_str());  // no half-written picture left behind
+  return st == CAIRO_STATUS_WRITE_ERROR || !closed ? std::string(std::strerror(why ? why : EIO))
+                                                   : std::string(cairo_status_to_string(st));
 }
 
 }  // namespace ladder::view

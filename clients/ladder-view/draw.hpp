@@ -171,6 +171,9 @@ std::vector<Mark> marks(const Camera& camera, const client::SceneInfo& info, con
 // in the side view, where the wide faces are edge-on, their tapes are drawn as lines along the outline. Draws only
 // what is on screen; returns how many blocks it drew.
 int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const client::State& state, const Hud& hud);
+// Writes the surface to `path` as a PNG; "" when done, else why not in words ("No such file or directory": cairo
+// says only "error while writing to output stream").
+std::string write_png(cairo_surface_t* surface, const std::string& path);
 // Background and HUD only (no state yet).
 void draw_empty(cairo_t* cr, const Camera& camera, const Hud& hud);
 

@@ -19,7 +19,7 @@ std::string parse_size(const std::string& text, int& w, int& h) {
   char x = 0, rest = 0;
   if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &rest) != 3 || (x != 'x' && x != 'X') || w < 1 || h < 1 ||
       w > 16384 || h > 16384)
-    return "'" + text + "' is not a size like 900x700";
+    return "'" + text + "' is not a size like 900x700 (1x1 to 16384x16384)";
   return {};
 }
 
@@ -30,9 +30,10 @@ std::string parse_view(const std::string& text, std::optional<ladder::view::Came
   double yaw = ladder::view::kDefaultYaw * 180 / M_PI, pitch = ladder::view::kDefaultPitch * 180 / M_PI;
   char rest = 0;
   const int n = std::sscanf(text.c_str(), "%lf,%lf,%lf,%lf,%lf%c", &c.cx, &c.cy, &c.scale, &yaw, &pitch, &rest);
-  if ((n != 3 && n != 5) || !(c.scale > 0) || !(std::abs(yaw) <= 80) || !(std::abs(pitch) <= 80))
-    return "'" + text + "' is not a view like 0.01,-0.2,1500 or 0.01,-0.2,1500,-50,12 (centre X,Y in m, px per m, "
-                        "then yaw and pitch in degrees, each within +-80)";
+  if ((n != 3 && n != 5) || !(std::abs(c.cx) <= 1e9) || !(std::abs(c.cy) <= 1e9) || !(c.scale >= 1e-6) ||
+      !(c.scale <= 1e9) || !(std::abs(yaw) <= 80) || !(std::abs(pitch) <= 80))
+    return "'" + text + "' is not a view like 0.01,-0.2,1500 or 0.01,-0.2,1500,-50,12 (centre X,Y in m within "
+                        "+-1e9, 1e-6 to 1e9 px per m, then yaw and pitch in degrees, each within +-80)";
   c.yaw = yaw * M_PI / 180;
   c.pitch = pitch * M_PI / 180;
   view = c;
@@ -47,12 +48,15 @@ int main(int argc, char** argv) {
   std::string size, view;
   CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
   app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
-  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, ladder::transport::kMaxDomain));
+  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")
+      ->check(ladder::client::domain_check(ladder::transport::kMaxDomain));
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
-      ->check(ladder::client::positive());
+      ->check(ladder::client::positive(1e6));
   auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");
-  app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")->needs(png);
+  app.add_option("--at", o.at, "with --png: the first state at or after this sim time [s]")
+      ->needs(png)
+      ->check(ladder::client::finite_range(-1e9, 1e9));
   auto* ascii = app.add_flag("--ascii", o.ascii, "draw in the terminal, refreshing in place (q or Ctrl-C stops; t tips)");
   png->excludes(ascii);
   app.add_option("--frames", o.frames, "with --ascii: stop after N frames")
@@ -60,7 +64,7 @@ int main(int argc, char** argv) {
       ->check(ladder::client::positive());
   app.add_option("--fps", o.fps, "with --ascii: frames per second at most (default 10)")
       ->needs(ascii)
-      ->check(CLI::Range(0.1, 100.0));
+      ->check(ladder::client::finite_range(0.1, 100));
   app.add_option("--size", size, "WxH: window or PNG pixels (default 900x700); --ascii: characters (default: the "
                                  "terminal's, else 100x40)");
   std::string security;
@@ -71,6 +75,10 @@ int main(int argc, char** argv) {
                                  "ladder");
   app.add_flag("--side", o.side, "the side view (the model's own plane, as the paper draws it) instead of 3-D");
   app.add_flag("--numbers", o.numbers, "each block's number beside it (the window: key n)");
+  if (const std::string empty = ladder::client::empty_argument(argc, argv); !empty.empty()) {
+    std::fprintf(stderr, "ladder-view: %s\n", empty.c_str());
+    return kUsage;
+  }
   try {
     app.parse(argc, argv);
     if (o.ascii) o.width = 100, o.height = 40;

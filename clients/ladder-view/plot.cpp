@@ -121,9 +121,9 @@ std::string write_plots_png(const History& h, const std::string& path, int w, in
   cairo_paint(cr);
   draw_plots(cr, h, 0, 0, w, h_px);
   cairo_destroy(cr);
-  const cairo_status_t st = cairo_surface_write_to_png(surface, path.c_str());
+  const std::string why = write_png(surface, path);
   cairo_surface_destroy(surface);
-  return st == CAIRO_STATUS_SUCCESS ? std::string() : cairo_status_to_string(st);
+  return why;
 }
 
 }  // namespace ladder::view

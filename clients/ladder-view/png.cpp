@@ -80,10 +80,10 @@ int run_png(const Options& o) {
   cairo_t* cr = cairo_create(surface);
   draw(cr, cam, info, state, hud);
   cairo_destroy(cr);
-  const cairo_status_t st = cairo_surface_write_to_png(surface, o.png.c_str());
+  const std::string why = write_png(surface, o.png);
   cairo_surface_destroy(surface);
-  if (st != CAIRO_STATUS_SUCCESS) {
-    std::cerr << "ladder-view: cannot write " << o.png << ": " << cairo_status_to_string(st) << "\n";
+  if (!why.empty()) {
+    std::cerr << "ladder-view: cannot write " << o.png << ": " << why << "\n";
     return kFailed;
   }
   char buf[320];

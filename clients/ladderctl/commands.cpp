@@ -12,6 +12,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -19,6 +22,8 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+
+#include <unistd.h>
 
 namespace ladder::ctl {
 
@@ -40,9 +45,9 @@ std::vector<double> numbers(const std::string& text, std::size_t min, std::size_
     try {
       std::size_t used = 0;
       out.push_back(std::stod(part, &used));
-      if (used != part.size()) throw std::invalid_argument(part);
+      if (used != part.size() || !std::isfinite(out.back())) throw std::invalid_argument(part);
     } catch (const std::exception&) {
-      throw CLI::ValidationError(what, "'" + text + "' is not a list of numbers like 0.01,0");
+      throw CLI::ValidationError(what, "'" + text + "' is not a list of finite numbers like 0.01,0");
     }
   }
   if (out.size() < min || out.size() > max)
@@ -51,6 +56,18 @@ std::vector<double> numbers(const std::string& text, std::size_t min, std::size_
                                                                                  std::to_string(max)) +
                                          " numbers separated by commas");
   return out;
+}
+
+// Why a file could not be written at `path`, or "" when its folder takes it (checked without creating it).
+std::string unwritable(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return "it is a folder";
+  const fs::path parent = fs::path(path).parent_path();
+  const std::string dir = parent.empty() ? "." : parent.string();
+  if (!fs::is_directory(dir, ec)) return "no folder '" + dir + "'";
+  if (access(dir.c_str(), W_OK) != 0) return std::string(std::strerror(errno)) + " (folder '" + dir + "')";
+  return {};
 }
 
 std::string format_ack(const client::Ack& a) {
@@ -259,6 +276,22 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
   const auto min_gap = std::chrono::duration<double>(rate > 0 ? 1.0 / rate : 0);
   auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
   std::uint64_t last_event = 0;  // the last event's seq (the server numbers every event it publishes, from 1)
+  const auto missed = [](std::uint64_t from, std::uint64_t to, const char* when) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "ladderctl: %llu event%s missed %s (numbers %llu to %llu): this client did not read them in "
+                         "time\n",
+                 static_cast<unsigned long long>(to - from + 1), to == from ? "" : "s", when,
+                 static_cast<unsigned long long>(from), static_cast<unsigned long long>(to));
+  };
+  // The server's count of published events, from its Stats (once a second): events lost at the end of a burst are
+  // followed by no event that would show the gap. A count above the last event seen is taken as lost when a second
+  // Stats, a second later, still shows it (events reach a reader in milliseconds; Stats and events are written by
+  // different threads, so one Stats may count an event still on its way).
+  // Before its first event the watcher counts from the second Stats it gets: events published before its reader met
+  // the server's writer are not kept for it, and are not its loss (the first Stats may come before that meeting).
+  std::uint64_t stats_seen = client.stats_received(), pending = 0;
+  int stats_before_count = 0;
+  bool counted = false;  // last_event holds a number: an event's, or a Stats count
   while (!g_interrupted) {
     if (what == "events") {
       client.wait_state([](const client::State&) { return false; }, Millis(100));
@@ -266,16 +299,26 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
         // A gap in the numbers: events this client's reader lost (it keeps the last 64, and a client stopped with
         // Ctrl-Z or too slow to read lets the rest go). Said on standard error, so that --json's lines stay clean;
         // a lower number is a restarted server, which counts afresh.
-        if (last_event > 0 && e.seq > last_event + 1) {
-          std::fflush(stdout);
-          std::fprintf(stderr, "ladderctl: %llu events missed before this one (numbers %llu to %llu): this client "
-                               "did not read them in time\n",
-                       static_cast<unsigned long long>(e.seq - last_event - 1),
-                       static_cast<unsigned long long>(last_event + 1), static_cast<unsigned long long>(e.seq - 1));
-        }
+        if (counted && e.seq > last_event + 1) missed(last_event + 1, e.seq - 1, "before this one");
         last_event = e.seq;
+        counted = true;
         if (w.kinds.empty() || std::find(w.kinds.begin(), w.kinds.end(), e.kind) != w.kinds.end())
           print_event(e, json);
+      }
+      if (client.stats_received() != stats_seen && client.latest_stats()) {
+        stats_seen = client.stats_received();
+        const std::uint64_t published = client.latest_stats()->events_published;
+        if (!counted) {
+          if (++stats_before_count >= 2) last_event = published, counted = true;
+        } else if (published <= last_event) {
+          pending = 0;  // nothing unseen (a Stats may be older than the last event; a restart shows in the events)
+        } else if (pending > last_event && published >= pending) {
+          missed(last_event + 1, pending, "since the last one");
+          last_event = pending;
+          pending = published > last_event ? published : 0;
+        } else {
+          pending = published > last_event ? published : 0;
+        }
       }
     } else if (what == "stats") {
       // Every new sample (once a second), paused or not: a paused server's step count stays where it is.
@@ -358,7 +401,8 @@ struct Values {
 };
 
 void add_connection(CLI::App& app, Connection& c) {
-  app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")->check(CLI::Range(0, ladder::transport::kMaxDomain));
+  app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")
+      ->check(ladder::client::domain_check(ladder::transport::kMaxDomain));
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
   // (At most a million seconds: 1e10 overflowed the clock's nanoseconds and timed out at once.)
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
@@ -398,7 +442,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   auto* push = app.add_subcommand("push", "a force on a block for a while");
   push->add_option("BLOCK", v.index, "block number")->required();
   push->add_option("--force", v.force, "force X,Y [N]")->required();
-  push->add_option("--for", v.duration, "how long [s]")->required();
+  push->add_option("--for", v.duration, "how long [s]")->required()->check(ladder::client::positive());
   push->add_option("--at", v.at, "point X,Y in the block's frame [m] (default its centre)");
   push->callback([&] {
     const auto f = numbers(v.force, 2, 2, "--force");
@@ -413,7 +457,9 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   auto* grab = app.add_subcommand("grab", "hold a block in a hand (a spring-damper); it stays where it is");
   grab->add_option("BLOCK", v.index, "block number")->required();
   grab->add_option("--to", v.to, "pull its centre toward world point X,Y [m] instead");
-  grab->add_option("--stiffness", v.stiffness, "spring stiffness [N/m] (default: 100 rad/s for the block alone)");
+  grab->add_option("--stiffness", v.stiffness,
+                   "spring stiffness [N/m] (default, or 0: 100 rad/s for the block alone)")
+      ->check(ladder::client::non_negative());
   grab->callback([&] {
     ladder_msg_Command c = cmd::grab(v.index);
     if (!v.to.empty()) {
@@ -512,6 +558,9 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
           v.plot.width < 200 || v.plot.height < 150 || v.plot.width > 8192 || v.plot.height > 8192)
         throw CLI::ValidationError("--size", "'" + v.plot_size + "' is not a size like 900x600 (200x150 to 8192x8192)");
     }
+    // Before any watching: a live plot would otherwise find out that it cannot write only after --for seconds.
+    if (const std::string why = unwritable(v.plot.png); !why.empty())
+      throw CLI::ValidationError("PNG", "cannot write '" + v.plot.png + "': " + why);
     if (!v.plot.log.empty())
       standalone = [&v](const Connection&) { return plot_log(v.plot); };
     else
@@ -520,8 +569,15 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
 
   auto* r = app.add_subcommand("replay", "publish a recorded session (ladderd --record) as if live, for viewers");
   r->add_option("FILE", v.replay.log, "the session log")->required()->check(CLI::ExistingFile);
-  r->add_option("--speed", v.replay.speed, "pace: 2 = twice as fast, 0 = as fast as possible (default 1)")
-      ->check(ladder::client::non_negative());
+  r->add_option("--speed", v.replay.speed,
+                "pace: 2 = twice as fast, 0 = as fast as possible (default 1; otherwise 1e-6 to 1e6)")
+      ->check(ladder::client::non_negative(1e6))
+      ->check(CLI::Validator(
+          [](std::string& t) -> std::string {
+            const double s = std::strtod(t.c_str(), nullptr);
+            return s == 0 || s >= 1e-6 ? "" : "must be 0 (as fast as possible) or at least 1e-6, not " + t;
+          },
+          "SPEED"));
   r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")
       ->check(ladder::client::non_negative());
   r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)");

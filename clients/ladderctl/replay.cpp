@@ -196,8 +196,8 @@ int replay(const ReplayOptions& o) {
   std::cout << "replaying " << o.log << " as sim id '" << o.sim_id << "' on DDS domain " << o.domain
             << " (Ctrl-C to stop)\n";
   Pacer pacer(o.speed);
-  std::uint64_t states = 0, events = 0, bad_states = 0;
-  double last_t = 0;
+  std::uint64_t states = 0, events = 0, bad_states = 0, early_states = 0;
+  double last_t = 0, last_early = 0;
   std::map<std::int32_t, std::int32_t> blocks;  // of each generation whose scene record has come
   // The last scene record's text and what it made: a live setting's record repeats its generation's text.
   std::string made_from, options;
@@ -236,7 +236,11 @@ int replay(const ReplayOptions& o) {
         if (const auto b = blocks.find(s.generation); b != blocks.end() && b->second != s.num_blocks)
           reader->refuse(*e, "state_t", "a state of " + std::to_string(s.num_blocks) + " blocks in a scene of " +
                                             std::to_string(b->second));
-        if (s.sim_time + 1e-9 < o.from) continue;
+        if (s.sim_time + 1e-9 < o.from) {
+          ++early_states;
+          last_early = s.sim_time;
+          continue;
+        }
         wait_for(e->utime);
         if (!out.state(s)) {
           ++bad_states;
@@ -266,6 +270,17 @@ int replay(const ReplayOptions& o) {
               << " state(s) with a hinge status other than 0, 1 or 2 (hinged, locked, broken)\n";
   std::printf("replayed %llu states and %llu events, up to t = %.3f s\n", static_cast<unsigned long long>(states),
               static_cast<unsigned long long>(events), last_t);
+  // Nothing a viewer could draw is a failure of the input, as a log that cannot be read is (unless stopped first).
+  if (states == 0 && rc == 0 && !g_stop) {
+    rc = 2;
+    if (bad_states > 0)
+      std::cerr << "ladderctl: " << o.log << ": every state was skipped; nothing to replay\n";
+    else if (early_states > 0)
+      std::fprintf(stderr, "ladderctl: %s: its states end at t = %.3f s, before --from %g s; nothing to replay\n",
+                   o.log.c_str(), last_early, o.from);
+    else
+      std::cerr << "ladderctl: " << o.log << ": no state in the log; nothing to replay\n";
+  }
   // Transient-local data lives as long as its writer: give late viewers a moment to take the last state.
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   return rc;

@@ -14,10 +14,11 @@ namespace {
 
 // "wrote out.png (900x600 px): 5 flip-flops at hinges 1 to 5 over t = 0.000 to 4.000 s, energy -0.2787 to
 // -0.2769 J" (or why it was not written).
-int finish(const view::History& h, const PlotOptions& o, const std::string& from) {
+// `empty_code`: the exit code when there is no state (2 for a log, bad input; 1 for a server that sent none).
+int finish(const view::History& h, const PlotOptions& o, const std::string& from, int empty_code) {
   if (h.energy().empty()) {
     std::cerr << "ladderctl: plot: no state in " << from << "; nothing written\n";
-    return 1;
+    return empty_code;
   }
   if (const std::string why = view::write_plots_png(h, o.png, o.width, o.height); !why.empty()) {
     std::cerr << "ladderctl: plot: cannot write " << o.png << ": " << why << "\n";
@@ -54,7 +55,7 @@ int plot_log(const PlotOptions& o) {
     std::cerr << "ladderctl: " << e.what() << "\n";
     return 2;
   }
-  return finish(h, o, o.log);
+  return finish(h, o, o.log, 2);
 }
 
 int plot_live(client::Client& c, const PlotOptions& o) {
@@ -71,7 +72,7 @@ int plot_live(client::Client& c, const PlotOptions& o) {
   }
   char from[64];
   std::snprintf(from, sizeof from, "%g s of the running server", o.seconds);
-  return finish(h, o, from);
+  return finish(h, o, from, 1);
 }
 
 }  // namespace ladder::ctl

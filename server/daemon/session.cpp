@@ -102,7 +102,7 @@ struct Check {
     bounded(p.impulse, "the impulse", limits.max_impulse, "N s", "commands.max_impulse");
     l.check_block(p.block);
     if (p.at) {
-      finite(*p.at, "the point");
+      within_reach(*p.at, "the point", limits.reach);  // (finite; and 1e308 away, its offset from the block is not)
       on_block(l, p.block, core::Rot::of(l.block_angle(p.block)).apply_inverse(*p.at - l.block_centre(p.block)),
                "the point");
     }
@@ -270,14 +270,20 @@ std::optional<double> toml_number(const std::string& text) {
 // The server's own live keys, which set_param() takes before a setting reaches the scene.
 constexpr const char* kServerLiveKeys = "server.real_time_factor, server.publish_rate";
 
-Outcome Session::set_param(const std::string& setting) {
-  const size_t eq = setting.find('=');
-  const std::string key = setting.substr(0, eq);
+Outcome Session::set_param(const std::string& full) {
+  // A refusal names the setting first; one of up to 1024 characters would fill the 512 of an answer's reason before
+  // the reason came: a long one is named by its start and length.
+  constexpr std::size_t kShown = 80;
+  const std::string setting = full.size() <= kShown + 20
+                                  ? full
+                                  : full.substr(0, kShown) + "... (" + std::to_string(full.size()) + " characters)";
+  const size_t eq = full.find('=');
+  const std::string key = full.substr(0, eq);
   if (key.starts_with("server.")) {
     if (eq == std::string::npos) return {false, setting + ": expected key=value"};
     // Read as TOML, as the scene's keys are (`sim.dt=1e-3`, `0x10`, `1_000` alike); strtod took `0x10` but not
     // `1_000`, and ` 5`.
-    const std::optional<double> toml_value = toml_number(setting.substr(eq + 1));
+    const std::optional<double> toml_value = toml_number(full.substr(eq + 1));
     const double v = toml_value.value_or(0);
     const bool is_number = toml_value && std::isfinite(v);
     if (key == "server.real_time_factor") {
@@ -299,9 +305,11 @@ Outcome Session::set_param(const std::string& setting) {
     return {};
   }
   try {
-    sim_->set(setting, kServerLiveKeys);
+    sim_->set(full, kServerLiveKeys);
   } catch (const scene::SceneError& e) {
-    return {false, e.what()};
+    std::string why = e.what();
+    if (setting != full && why.starts_with(full)) why = setting + why.substr(full.size());
+    return {false, why};
   }
   return {};
 }

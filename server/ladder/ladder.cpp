@@ -958,6 +958,7 @@ void Ladder::grab(const Grip& g) {
 }
 
 Ladder::Grip& Ladder::grip_of(int block) {
+  check_block(block);  // a block that does not exist, named as such (it was "not grabbed")
   for (Grip& g : grips_)
     if (g.block == block) return g;
   throw std::invalid_argument(grips_.empty() ? "nothing is grabbed; grab a block first"

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -466,9 +467,16 @@ void assign_value(toml::table& target, std::string_view leaf, std::string_view v
       return;
     }
   } catch (const toml::parse_error&) {
-    // not TOML: falls through to a bare string
+    // not TOML: a number TOML cannot hold (an integer past 2^63), else a bare string
   }
-  target.insert_or_assign(leaf, std::string(trim(value)));
+  const std::string text(trim(value));
+  char* end = nullptr;
+  const double x = text.empty() ? 0 : std::strtod(text.c_str(), &end);
+  if (end && *end == '\0' && std::isfinite(x) && text.find_first_of("xXnN") == std::string::npos) {
+    target.insert_or_assign(leaf, x);  // (ranges then say what is wrong with it, not "a string")
+    return;
+  }
+  target.insert_or_assign(leaf, text);
 }
 
 Origins apply_overrides(toml::table& root, const std::vector<std::string>& overrides) {

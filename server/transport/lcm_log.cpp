@@ -96,8 +96,12 @@ void LogWriter::run() {
 LogReader::LogReader(const std::string& path) : path_(path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot open the log file '" + path + "'");
-  bytes_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  // The sync word first: a file that is not a log (/dev/zero, say, which never ends) is refused before it is read.
+  char start[4] = {};
+  in.read(start, sizeof start);
+  bytes_.assign(start, start + in.gcount());
   check_start();
+  bytes_.insert(bytes_.end(), std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
 LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name)

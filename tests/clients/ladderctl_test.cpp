@@ -83,7 +83,7 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"load ../secret", 1, "refused: not permitted"},
       // Usage errors: exit code 2, nothing sent.
       {"poke", 2, "BLOCK is required"},
-      {"drag 3 1,x", 2, "is not a list of numbers"},
+      {"drag 3 1,x", 2, "is not a list of finite numbers"},
       {"watch everything", 2, "WHAT"},
       {"watch state --rate -1", 2, "--rate: must be a number of 0 or more, not -1"},
       {"--timeout 1e10 status", 2, "--timeout: must be at most 1e+06, not 1e10"},
@@ -164,6 +164,32 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
 }
 
+// What `watch events --json` said: each event number printed ({"seq":N,...}) or in a gap said on standard error
+// ("N events missed before this one (numbers A to B)", or "... since the last one ..."), counted.
+struct Accounting {
+  std::map<unsigned long long, int> seen;  // each number: printed (1) or in a gap said (1 each)
+  unsigned long long missed_total = 0, tail_gaps = 0;  // tail_gaps: gaps said with no later event ("since")
+};
+Accounting account_events(const std::string& log) {
+  Accounting a;
+  static const std::regex gap(R"(ladderctl: (\d+) events? missed (before this one|since the last one) \(numbers (\d+) to (\d+)\))");
+  std::istringstream lines(log);
+  for (std::string line; std::getline(lines, line);) {
+    unsigned long long n = 0;
+    std::smatch m;
+    if (std::sscanf(line.c_str(), "{\"seq\":%llu,", &n) == 1) {
+      ++a.seen[n];
+    } else if (std::regex_search(line, m, gap)) {
+      const unsigned long long missed = std::stoull(m[1]), from = std::stoull(m[3]), to = std::stoull(m[4]);
+      EXPECT_EQ(to - from + 1, missed) << line;
+      for (unsigned long long k = from; k <= to; ++k) ++a.seen[k];
+      a.missed_total += missed;
+      a.tail_gaps += m[2] == "since the last one";
+    }
+  }
+  return a;
+}
+
 // watch events says which events it missed: a watcher stopped (Ctrl-Z) while the paused server breaks and joins a
 // hinge 1000 times loses some of those 2001 events (once it runs again its DDS thread delivers the backlog into a
 // reader that keeps 64, faster than ladderctl takes them; measured: 379 to 1497 lost in six runs, two of them on a
@@ -210,20 +236,9 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   watcher.signal(SIGINT);
   ASSERT_TRUE(watcher.wait_exit(std::chrono::seconds(10)).has_value());
   const std::string log = watcher.log();
-  std::map<unsigned long long, int> seen;  // each number: printed (1) or in a gap said (1 each)
-  unsigned long long missed_total = 0;
-  std::istringstream lines(log);
-  for (std::string line; std::getline(lines, line);) {
-    unsigned long long n = 0, missed = 0, from = 0, to = 0;
-    if (std::sscanf(line.c_str(), "{\"seq\":%llu,", &n) == 1) {
-      ++seen[n];
-    } else if (std::sscanf(line.c_str(), "ladderctl: %llu events missed before this one (numbers %llu to %llu)",
-                           &missed, &from, &to) == 3) {
-      EXPECT_EQ(to - from + 1, missed) << line;
-      for (unsigned long long k = from; k <= to; ++k) ++seen[k];
-      missed_total += missed;
-    }
-  }
+  const Accounting a = account_events(log);
+  const std::map<unsigned long long, int>& seen = a.seen;
+  const unsigned long long missed_total = a.missed_total;
   ASSERT_FALSE(seen.empty()) << log;
   const unsigned long long first = seen.begin()->first, end = seen.rbegin()->first;
   EXPECT_EQ(seen.size(), end - first + 1) << "a number neither printed nor said missing\n" << log;
@@ -236,6 +251,66 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   // AddressSanitizer it kept up with all 2001 once, so there the test checks only the accounting above.
   EXPECT_GT(missed_total, 0u) << log;
 #endif
+}
+
+// Events lost with no event after them: a watcher stopped longer than its DDS lease (1 s here, from a configuration of
+// its own) is forgotten by the server, whose events then reach it no more; none follows once it runs again. The
+// server's count of published events, in its Stats, shows the loss: the watcher says which numbers it missed, and
+// every number up to the server's count is printed or said missed, once.
+TEST_F(Ladderctl, WatchEventsSaysWhatItMissedWhenNoEventFollows) {
+  ASSERT_EQ(ctl("pause").code, 0);
+  const std::string base = std::string(LADDER_BINARY_DIR) + "/tests/ctl-tail-" + std::to_string(getpid());
+  {
+    std::ifstream in(std::string(LADDER_SOURCE_DIR) + "/config/cyclonedds.xml");
+    std::stringstream xml;
+    xml << in.rdbuf();
+    std::string text = xml.str();
+    const std::string at = "</Discovery>";
+    ASSERT_NE(text.find(at), std::string::npos);
+    text.insert(text.find(at), "<LeaseDuration>1s</LeaseDuration>");
+    std::ofstream(base + ".xml") << text;
+  }
+  Process watcher({"/usr/bin/env", "CYCLONEDDS_URI=file://" + base + ".xml", kLadderctl, "watch", "events", "--json",
+                   "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "15"},
+                  base + ".txt");
+  client::Client c(domain_, sim_id_, "breaker");
+  ASSERT_TRUE(c.wait_for_server(std::chrono::milliseconds(15000)));
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (watcher.log().find("\"kind\":\"join\"") == std::string::npos && Clock::now() < deadline) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_NE(watcher.log().find("\"kind\":\"join\""), std::string::npos) << watcher.log();
+  watcher.signal(SIGSTOP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(3000));  // three leases: the server has let it go
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+  }
+  // The server's count once it has published them all (its Stats come once a second).
+  const std::uint64_t before = c.stats_received();
+  ASSERT_TRUE(c.wait_stats([&](const ladder_msg_Stats&) { return c.stats_received() > before + 1; },
+                           std::chrono::milliseconds(5000)));
+  const unsigned long long last = c.latest_stats()->events_published;
+  watcher.signal(SIGCONT);
+  Accounting a;
+  const auto read_all = Clock::now() + std::chrono::seconds(20);
+  while (Clock::now() < read_all) {
+    a = account_events(watcher.log());
+    if (!a.seen.empty() && a.seen.rbegin()->first >= last) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  watcher.signal(SIGINT);
+  ASSERT_TRUE(watcher.wait_exit(std::chrono::seconds(10)).has_value());
+  const std::string log = watcher.log();
+  a = account_events(log);
+  ASSERT_FALSE(a.seen.empty()) << log;
+  EXPECT_EQ(a.seen.rbegin()->first, last) << "the server published " << last << " events\n" << log;
+  EXPECT_EQ(a.seen.size(), a.seen.rbegin()->first - a.seen.begin()->first + 1) << "a number neither printed nor said "
+                                                                                   "missing\n" << log;
+  for (const auto& [k, count] : a.seen) EXPECT_EQ(count, 1) << "number " << k << " printed or missed twice\n" << log;
+  EXPECT_GT(a.tail_gaps, 0u) << log;  // the loss was said though no event came after it
 }
 
 // watch stats prints every Stats sample (one a second), paused or not: it used to print a sample only when the step
@@ -294,6 +369,42 @@ TEST_F(Ladderctl, PlotWritesTheRippleFromTheServerAndFromItsRecording) {
     EXPECT_GE(dots, 5 * 12) << png << ": five dots of radius 3 px";  // each about 28 px, allow for overlap
   }
   EXPECT_EQ(run("plot " + recorded + " --log /nonexistent.lcmlog").code, 2);
+}
+
+// Bad input refused before anything is sent or read, exit code 2, with the reason: an empty argument (an unset
+// variable: `break ""` broke hinge 0, `--security ""` ran without DDS Security), NaN inside a vector or as a duration
+// (it reached the server, which refused it with exit 1), a replay pace that overflowed into "as fast as possible",
+// /dev/zero as a log (read without end before its first bytes were checked), a picture that cannot be written (a
+// live plot found out after watching for --for seconds), and a log with no state to play or plot.
+TEST_F(Ladderctl, BadInputIsRefusedBeforeAnythingIsSent) {
+  const std::string dir = std::string(LADDER_BINARY_DIR) + "/tests/ctl-bad-" + std::to_string(getpid());
+  {
+    std::ofstream cut(dir + "-cut.lcmlog", std::ios::binary);  // LCM's sync word, then no whole event
+    cut << std::string("\xED\xA1\xDA\x01", 4) << std::string(40, '\0');
+  }
+  struct Case { std::string args, words; };
+  for (const Case& c :
+       {Case{"break ''", "ladderctl: argument 2 is empty (after 'break'); an unset shell variable?"},
+        Case{"status --security ''", "argument 3 is empty (after '--security')"},
+        Case{"poke 3 --impulse nan,0", "--impulse: 'nan,0' is not a list of finite numbers like 0.01,0"},
+        Case{"drag 3 0,inf", "POSE: '0,inf' is not a list of finite numbers"},
+        Case{"push 3 --force 1,0 --for nan", "--for: 'nan' is not a number greater than 0"},
+        Case{"grab 3 --stiffness -5", "--stiffness: must be a number of 0 or more, not -5"},
+        Case{"grab 3 --stiffness nan", "--stiffness: 'nan' is not a number of 0 or more"},
+        Case{"--domain text status", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+        Case{"replay --speed 1e-15 " + dir + "-cut.lcmlog", "must be 0 (as fast as possible) or at least 1e-6"},
+        Case{"replay /dev/zero", "'/dev/zero' is not an LCM event log"},
+        Case{"plot " + dir + ".png --log /dev/zero", "'/dev/zero' is not an LCM event log"},
+        Case{"plot /no/such/dir/p.png --for 1", "cannot write '/no/such/dir/p.png': no folder '/no/such/dir'"},
+        Case{"plot " + std::string(LADDER_BINARY_DIR) + " --for 1", "it is a folder"},
+        Case{"plot " + dir + ".png --log " + dir + "-cut.lcmlog", "no state in " + dir + "-cut.lcmlog"},
+        Case{"replay --as cut-" + std::to_string(getpid()) + " " + dir + "-cut.lcmlog",
+             "-cut.lcmlog: no state in the log; nothing to replay"}}) {
+    const Result r = ctl(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
+  }
+  EXPECT_EQ(server_->log().find(" from "), std::string::npos) << "a command reached the server:\n" << server_->log();
 }
 
 // ladderctl list: both ladders of a domain shared by two network namespaces (joined by a veth pair), one server on

@@ -843,6 +843,30 @@ TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   EXPECT_NE(zero.output.find("--timeout: must be a number greater than 0, not 0"), std::string::npos) << zero.output;
 }
 
+// Options that would hang the viewer or draw nonsense are refused, each with its reason and exit code 2: a timeout
+// past a million seconds (1e10 overflowed the deadline and gave up at once), NaN frame rates and sim times (they
+// passed the range checks and waited for ever), a view centred on NaN, an empty argument (an unset variable: it was
+// taken as "not given", and --security "" ran without DDS Security), a domain that is a word.
+TEST_F(View, BadOptionsAreRefusedWithTheirReason) {
+  struct Case { std::string args, words; };
+  const std::string png = " --png " + out_ + "-bad.png";
+  for (const Case& c : {Case{png + " --timeout 1e10", "--timeout: must be at most 1e+06, not 1e10"},
+                        Case{" --ascii --fps nan", "--fps: 'nan' is not a number from 0.1 to 100"},
+                        Case{png + " --at nan", "--at: 'nan' is not a number from -1e+09 to 1e+09"},
+                        Case{png + " --at inf", "--at: 'inf' is not a number from"},
+                        Case{png + " --view nan,0,100", "--view: 'nan,0,100' is not a view like"},
+                        Case{png + " --view 0,0,1e308", "1e-6 to 1e9 px per m"},
+                        Case{png + " --size 16385x16385", "is not a size like 900x700 (1x1 to 16384x16384)"},
+                        Case{png + " --security ''", "argument 4 is empty (after '--security')"},
+                        Case{" --png ''", "argument 2 is empty (after '--png')"},
+                        Case{png + " --security /etc/passwd", "/etc/passwd: a file, not an identity folder"},
+                        Case{png + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"}}) {
+    const Result r = shell(kViewer + c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
+  }
+}
+
 // No display: SDL would fall back to its invisible "offscreen" driver and the window would run for ever, unseen, on a
 // live server. The viewer says there is no display and exits 1 at once (`timeout` turns a viewer still running after
 // 20 s into code 124); asked for by name (SDL_VIDEODRIVER), the offscreen driver is taken.

@@ -77,6 +77,10 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
                                                         "(commands.max_impulse)");
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(kInf, 0)}), "the point is inf, not a finite number");
   refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(5, 5)}), "the point is ", false);
+  // Far away, a poke's point is beyond reach first (1e308: its offset from the block turned into the block's frame
+  // was inf mm).
+  refused(*s, action(m::Poke{2, {0.001, 0}, Vec2(1e308, 1e308)}),
+          "the point is 1.4142135623730951e+308 m from the origin, beyond the reach of 10 m (commands.reach)");
   refused(*s, action(m::Poke{0, {0.001, 0}, {}}), "impulse: the block is held and does not move freely");
   refused(*s, action(m::Push{0, {1, 0}, {0, 0}, 0.1}), "push: the block is held and does not move freely");
   refused(*s, action(m::Push{2, {kInf, 0}, {0, 0}, 0.1}), "the force is inf, not a finite number");
@@ -112,6 +116,9 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   refused(*s, action(m::Drag{4, {0, 1e3}, {}}), "the target is 1000 m from the origin, beyond the reach of 10 m "
                                                 "(commands.reach)");
   refused(*s, action(m::Release{2}), "block 2 is not grabbed");
+  // A block that does not exist is named as such, grabbed or not (it was "block 9 is not grabbed").
+  refused(*s, action(m::Release{9}), "no block 9 (blocks are 0..5)");
+  refused(*s, action(m::Drag{-1, {0, 0}, {}}), "no block -1 (blocks are 0..5)");
   accepted(*s, action(m::Release{4}));
   refused(*s, action(m::Break{6}), "no hinge 6 (hinges are 0..5; hinge 0 is the top block's hold)");
   refused(*s, action(m::Join{3}), "hinge 3 is not broken");

@@ -139,6 +139,22 @@ TEST(SessionRanges, GrabAndDragAnglesAreBoundedThenWrapped) {
   expect_refused(*s, drag(4, 0, -0.2, &a), "block 4 is not grabbed");
 }
 
+// A refusal of a long setting names it by its start and length, so that the reason fits the answer's 512 characters
+// (the setting itself, up to 1024, was echoed whole and the reason cut off).
+TEST(SessionRanges, ALongSettingIsNamedByItsStartAndTheReasonFits) {
+  auto s = classic();
+  const std::string value(900, '[');
+  const Outcome o = s->apply(fields_of(set("sim.dt=" + value)));
+  EXPECT_FALSE(o.accepted);
+  EXPECT_TRUE(o.reason.starts_with("sim.dt=" + std::string(73, '[') + "... (907 characters): ")) << o.reason;
+  EXPECT_LT(o.reason.size(), 512u) << o.reason;
+  EXPECT_NE(o.reason.find("sim.dt"), o.reason.rfind("sim.dt")) << "no reason after the name: " << o.reason;
+  const Outcome server = s->apply(fields_of(set("server.publish_rate=" + std::string(900, '9'))));
+  EXPECT_FALSE(server.accepted);
+  EXPECT_TRUE(server.reason.ends_with("server.publish_rate must be a number from 1 Hz to the physics rate (1000 Hz)"))
+      << server.reason;
+}
+
 TEST(SessionRanges, PublishRateIsAtLeastOneHertz) {
   auto s = classic();
   const std::string range = ": server.publish_rate must be a number from 1 Hz to the physics rate (1000 Hz)";

@@ -531,6 +531,9 @@ TEST(Overrides, TheLastOneWins) {
 TEST(Overrides, AreValidatedLikeFileValues) {
   EXPECT_EQ(error_of("", {"sim.dt=1"}), "--set sim.dt=1: sim.dt must be >= 1e-07 and <= 0.1 (got 1)");
   EXPECT_EQ(error_of("", {"ladder.blocks=many"}), "--set ladder.blocks=many: ladder.blocks must be an integer, not a string");
+  // A number past TOML's 64-bit integers is a number that is out of range, not "a string".
+  EXPECT_EQ(error_of("", {"damping.linear=99999999999999999999"}),
+            "--set damping.linear=99999999999999999999: damping.linear must be >= 0 and <= 1000 (got 1e+20)");
   EXPECT_EQ(error_of("", {"ladder.blocks=0"}), "--set ladder.blocks=0: ladder.blocks must be >= 1 and <= 1000000 (got 0)");
   EXPECT_EQ(error_of("", {"ladder.length=nan"}), "--set ladder.length=nan: ladder.length must be finite (got nan)");
   EXPECT_EQ(error_of("", {"sim.gravity=[0, x]"}),
