@@ -164,6 +164,18 @@ TEST_F(Ladderctl, WatchEventsHasAHeadingAndTakesKinds) {
   EXPECT_EQ(r.output.find(" s  unlock "), std::string::npos) << r.output;
 }
 
+// Breaks and joins hinge 3 until a `watch events --json` prints a join (its reader may not have met the server's
+// writer yet: events are not kept for readers that come later).
+void break_and_join_until_printed(client::Client& c, const Process& watcher) {
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (watcher.log().find("\"kind\":\"join\"") == std::string::npos && Clock::now() < deadline) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_NE(watcher.log().find("\"kind\":\"join\""), std::string::npos) << watcher.log();
+}
+
 // What `watch events --json` said: each event number printed ({"seq":N,...}) or in a gap said on standard error
 // ("N events missed before this one (numbers A to B)", or "... since the last one ..."), counted.
 struct Accounting {
@@ -203,23 +215,9 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
   Process watcher({kLadderctl, "watch", "events", "--json", "--domain", std::to_string(domain_), "--sim-id", sim_id_,
                    "--timeout", "15"},
                   out);
-  const auto wait_for = [&](const std::string& words) {
-    const auto deadline = Clock::now() + std::chrono::seconds(20);
-    while (watcher.log().find(words) == std::string::npos && Clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    return watcher.log().find(words) != std::string::npos;
-  };
   client::Client c(domain_, sim_id_, "breaker");
   ASSERT_TRUE(c.wait_for_server(std::chrono::milliseconds(15000)));
-  // Until the watcher prints one (its reader may not have met the server's writer yet: events are not kept for
-  // readers that come later).
-  const auto deadline = Clock::now() + std::chrono::seconds(20);
-  while (watcher.log().find("\"kind\":\"join\"") == std::string::npos && Clock::now() < deadline) {
-    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
-    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  ASSERT_TRUE(wait_for("\"kind\":\"join\"")) << watcher.log();
+  break_and_join_until_printed(c, watcher);
   watcher.signal(SIGSTOP);
   for (int i = 0; i < kPairs; ++i) {
     ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
@@ -275,13 +273,7 @@ TEST_F(Ladderctl, WatchEventsSaysWhatItMissedWhenNoEventFollows) {
                   base + ".txt");
   client::Client c(domain_, sim_id_, "breaker");
   ASSERT_TRUE(c.wait_for_server(std::chrono::milliseconds(15000)));
-  const auto deadline = Clock::now() + std::chrono::seconds(20);
-  while (watcher.log().find("\"kind\":\"join\"") == std::string::npos && Clock::now() < deadline) {
-    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
-    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  ASSERT_NE(watcher.log().find("\"kind\":\"join\""), std::string::npos) << watcher.log();
+  break_and_join_until_printed(c, watcher);
   watcher.signal(SIGSTOP);
   std::this_thread::sleep_for(std::chrono::milliseconds(3000));  // three leases: the server has let it go
   for (int i = 0; i < 3; ++i) {
