@@ -299,7 +299,7 @@ Outcome Session::set_param(const std::string& full) {
     } else if (key == "server.physics_rate") {
       return {false, setting + ": server.physics_rate cannot change while the server runs; set it in ladderd.toml"};
     } else {
-      return {false, setting + ": unknown key " + key +
+      return {false, setting + ": unknown key" + (key.size() <= kShown ? " " + key : "") +
                          " (server keys: " + kServerLiveKeys + ")"};
     }
     return {};

@@ -153,6 +153,10 @@ TEST(SessionRanges, ALongSettingIsNamedByItsStartAndTheReasonFits) {
   EXPECT_FALSE(server.accepted);
   EXPECT_TRUE(server.reason.ends_with("server.publish_rate must be a number from 1 Hz to the physics rate (1000 Hz)"))
       << server.reason;
+  const Outcome key = s->apply(fields_of(set("server." + std::string(900, 'k') + "=1")));
+  EXPECT_TRUE(key.reason.ends_with(" characters): unknown key (server keys: server.real_time_factor, "
+                                   "server.publish_rate)"))
+      << key.reason;
 }
 
 TEST(SessionRanges, PublishRateIsAtLeastOneHertz) {
