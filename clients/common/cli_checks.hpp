@@ -11,16 +11,25 @@
 
 namespace ladder::client {
 
+// `text` read whole as a number: false when it is not one (or not all of it is); `underflow` when it is too close to 0
+// to be told from it (strtod's ERANGE for a finite result).
+inline bool read_number(const std::string& text, double& x, bool& underflow) {
+  errno = 0;
+  char* end = nullptr;
+  x = std::strtod(text.c_str(), &end);
+  underflow = errno == ERANGE && std::isfinite(x);
+  return !text.empty() && end != text.c_str() && *end == '\0';
+}
+
 // A finite number above 0 (strictly == true) or at least 0, and at most `most`.
 inline CLI::Validator number_check(bool strictly, double most = HUGE_VAL) {
   return CLI::Validator(
       [strictly, most](std::string& text) -> std::string {
-        errno = 0;
-        char* end = nullptr;
-        const double x = std::strtod(text.c_str(), &end);
+        double x = 0;
+        bool underflow = false;
         const std::string want = strictly ? "a number greater than 0" : "a number of 0 or more";
-        if (text.empty() || end == text.c_str() || *end != '\0' || !std::isfinite(x)) return "'" + text + "' is not " + want;
-        if (errno == ERANGE) return "'" + text + "' is too close to 0 to be told from it";
+        if (!read_number(text, x, underflow) || !std::isfinite(x)) return "'" + text + "' is not " + want;
+        if (underflow) return "'" + text + "' is too close to 0 to be told from it";
         if (strictly ? !(x > 0) : !(x >= 0)) return "must be " + want + ", not " + text;
         if (x > most) return "must be at most " + CLI::detail::to_string(most) + ", not " + text;
         return {};
@@ -34,10 +43,9 @@ inline CLI::Validator non_negative(double most = HUGE_VAL) { return number_check
 inline CLI::Validator finite_range(double lo, double hi) {
   return CLI::Validator(
       [lo, hi](std::string& text) -> std::string {
-        errno = 0;
-        char* end = nullptr;
-        const double x = std::strtod(text.c_str(), &end);
-        if (text.empty() || end == text.c_str() || *end != '\0' || !std::isfinite(x) || !(x >= lo && x <= hi))
+        double x = 0;
+        bool underflow = false;
+        if (!read_number(text, x, underflow) || !(x >= lo && x <= hi))
           return "'" + text + "' is not a number from " + CLI::detail::to_string(lo) + " to " +
                  CLI::detail::to_string(hi);
         return {};

@@ -310,13 +310,13 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
         const std::uint64_t published = client.latest_stats()->events_published;
         if (!counted) {
           if (++stats_before_count >= 2) last_event = published, counted = true;
-        } else if (published <= last_event) {
-          pending = 0;  // nothing unseen (a Stats may be older than the last event; a restart shows in the events)
-        } else if (pending > last_event && published >= pending) {
-          missed(last_event + 1, pending, "since the last one");
-          last_event = pending;
-          pending = published > last_event ? published : 0;
         } else {
+          if (pending > last_event && published >= pending) {
+            missed(last_event + 1, pending, "since the last one");
+            last_event = pending;
+          }
+          // (none unseen when published <= last_event: a Stats may be older than the last event, and a restart shows
+          // in the events)
           pending = published > last_event ? published : 0;
         }
       }
