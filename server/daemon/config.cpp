@@ -1,5 +1,6 @@
 #include "daemon/config.hpp"
 
+#include "scene/scene.hpp"
 #include "transport/dds.hpp"
 
 #include <toml++/toml.h>
@@ -11,7 +12,6 @@
 #include <string_view>
 #include <algorithm>
 #include <cctype>
-#include <sstream>
 
 namespace ladder::daemon {
 
@@ -118,12 +118,6 @@ const std::vector<Key>& keys() {
   return k;
 }
 
-std::string shortest(double v) {
-  std::ostringstream o;
-  o << v;
-  return o.str();
-}
-
 void positive(double v, double hi, const char* key, const char* bound = nullptr) {
   if (!(v > 0 && v <= hi))
     throw ConfigError(std::string(key) + " must be > 0 and at most " +
@@ -143,8 +137,8 @@ void check_config(const DaemonConfig& c) {
   positive(s.rates.physics, 100'000, "server.physics_rate");
   // The same bounds as `set` (session.hpp): below them the server would stop publishing or freeze the simulation.
   if (!(s.rates.publish >= kMinPublishRate && s.rates.publish <= s.rates.physics))
-    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" + shortest(s.rates.publish) +
-                          " states a second against " + shortest(s.rates.physics) + " ticks a second)",
+    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" + scene::format_number(s.rates.publish) +
+                          " states a second against " + scene::format_number(s.rates.physics) + " ticks a second)",
                       "server.publish_rate");
   positive(s.stats_rate, 100, "server.stats_rate");
   const double rtf = s.rates.real_time_factor;

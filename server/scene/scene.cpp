@@ -209,16 +209,6 @@ bool contains_word(std::string_view list, std::string_view word) {
 // ---------------------------------------------------------------------------------------------------------------
 // Messages
 
-// Shortest text that reads back as the same double ("0.001", "1e-12", "-1").
-std::string format_number(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  // Whole numbers print as integers: to_chars would pick "1e+07" for ten million.
-  if (v == std::trunc(v) && std::abs(v) < 1e15) return std::to_string(static_cast<long long>(v));
-  std::array<char, 32> buf{};
-  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return std::string(buf.data(), r.ptr);
-}
 
 std::string describe(const Range& r) {
   std::string lo, hi;
@@ -340,6 +330,11 @@ double to_number(const toml::node& n, const Site& s, const Range& r) {
 // Integer keys refuse 6.0: a count or an index written as a float is more likely a slip than intended.
 int to_int(const toml::node& n, const Site& s, const Range& r) {
   const auto* i = n.as_integer();
+  // A whole number past every range (e.g. `--set ladder.blocks=99999999999999999999`, past 2^63 and so read as a
+  // float) is refused for its size, which is what is wrong with it.
+  if (const auto* f = n.as_floating_point(); f && std::isfinite(f->get()) && f->get() == std::floor(f->get()) &&
+                                             !r.contains(f->get()))
+    s.fail(n, s.name + " must be " + describe(r) + " (got " + format_number(f->get()) + ")");
   if (!i) s.fail(n, s.name + " must be an integer, not " + a_type(n));
   const std::int64_t v = i->get();
   if (!r.contains(static_cast<double>(v)))
@@ -630,6 +625,16 @@ void read_ladder(const Reader& r, model::LadderSpec& l) {
 }
 
 }  // namespace
+
+std::string format_number(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  // Whole numbers print as integers: to_chars would pick "1e+07" for ten million.
+  if (v == std::trunc(v) && std::abs(v) < 1e15) return std::to_string(static_cast<long long>(v));
+  std::array<char, 32> buf{};
+  const auto r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  return std::string(buf.data(), r.ptr);
+}
 
 const std::vector<AccuracyPreset>& accuracy_presets() {
   using core::Integrator, core::Stabilization, core::SolverKind;

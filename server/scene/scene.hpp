@@ -84,6 +84,10 @@ Scene with_live_setting(const Scene& scene, const std::string& setting, std::str
 // published with them for the viewer (SceneInfo's options), the only program that uses it.
 std::string live_settings(const Scene& scene);
 
+// The shortest text that reads back as the same double ("0.001", "1e-12", "-1"; whole numbers as integers, "10000000"
+// rather than "1e+07"), as every message about a value shows it.
+std::string format_number(double v);
+
 // One line per key, "key  type  description (range)", for --help.
 std::string keys_help();
 

@@ -534,6 +534,9 @@ TEST(Overrides, AreValidatedLikeFileValues) {
   // A number past TOML's 64-bit integers is a number that is out of range, not "a string".
   EXPECT_EQ(error_of("", {"damping.linear=99999999999999999999"}),
             "--set damping.linear=99999999999999999999: damping.linear must be >= 0 and <= 1000 (got 1e+20)");
+  EXPECT_EQ(error_of("", {"ladder.blocks=99999999999999999999"}),
+            "--set ladder.blocks=99999999999999999999: ladder.blocks must be >= 1 and <= 1000000 (got 1e+20)");
+  EXPECT_EQ(error_of("", {"ladder.blocks=6.0"}), "--set ladder.blocks=6.0: ladder.blocks must be an integer, not a floating-point number");
   EXPECT_EQ(error_of("", {"ladder.blocks=0"}), "--set ladder.blocks=0: ladder.blocks must be >= 1 and <= 1000000 (got 0)");
   EXPECT_EQ(error_of("", {"ladder.length=nan"}), "--set ladder.length=nan: ladder.length must be finite (got nan)");
   EXPECT_EQ(error_of("", {"sim.gravity=[0, x]"}),
