@@ -137,8 +137,9 @@ void check_config(const DaemonConfig& c) {
   positive(s.rates.physics, 100'000, "server.physics_rate");
   // The same bounds as `set` (session.hpp): below them the server would stop publishing or freeze the simulation.
   if (!(s.rates.publish >= kMinPublishRate && s.rates.publish <= s.rates.physics))
-    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" + scene::format_number(s.rates.publish) +
-                          " states a second against " + scene::format_number(s.rates.physics) + " ticks a second)",
+    throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" +
+                          scene::format_number(s.rates.publish) + " states a second against " +
+                          scene::format_number(s.rates.physics) + " ticks a second)",
                       "server.publish_rate");
   positive(s.stats_rate, 100, "server.stats_rate");
   const double rtf = s.rates.real_time_factor;
