@@ -53,20 +53,6 @@ inline CLI::Validator finite_range(double lo, double hi) {
       "NUMBER");
 }
 
-// A DDS domain id, 0 to `most`, in words (CLI::Range says "Value text not in range" for a word).
-inline CLI::Validator domain_check(int most) {
-  return CLI::Validator(
-      [most](std::string& text) -> std::string {
-        char* end = nullptr;
-        errno = 0;
-        const long v = std::strtol(text.c_str(), &end, 10);
-        if (text.empty() || end == text.c_str() || *end != '\0' || errno == ERANGE || v < 0 || v > most)
-          return "'" + text + "' is not a DDS domain id (0 to " + std::to_string(most) + ")";
-        return {};
-      },
-      "INT");
-}
-
 // The first empty argument on a command line, in words, or "" if none is. An empty argument is most often a shell
 // variable that was not set (--security "$DIR"), and every option would take it as its default: a client would then
 // run without DDS Security, or on block 0.

@@ -3,6 +3,7 @@
 #include "app.hpp"
 #include "cli_checks.hpp"
 #include "transport/dds.hpp"
+#include "transport/domain_option.hpp"
 #include "transport/security.hpp"
 #include "transport/version.hpp"
 
@@ -49,7 +50,7 @@ int main(int argc, char** argv) {
   CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
   app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
   app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")
-      ->check(ladder::client::domain_check(ladder::transport::kMaxDomain));
+      ->check(ladder::transport::domain_check());
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
       ->check(ladder::client::positive(1e6));

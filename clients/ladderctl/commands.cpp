@@ -1,5 +1,6 @@
 #include "commands.hpp"
 #include "transport/dds.hpp"
+#include "transport/domain_option.hpp"
 #include "transport/version.hpp"
 
 #include "cli_checks.hpp"
@@ -402,7 +403,7 @@ struct Values {
 
 void add_connection(CLI::App& app, Connection& c) {
   app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")
-      ->check(ladder::client::domain_check(ladder::transport::kMaxDomain));
+      ->check(ladder::transport::domain_check());
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
   // (At most a million seconds: 1e10 overflowed the clock's nanoseconds and timed out at once.)
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")

@@ -1,11 +1,13 @@
 // ladderd: the Jacob's ladder simulation server. By default it serves the ladder in real time over Cyclone DDS
 // until SIGINT, SIGTERM or SIGHUP; with --offline it runs a scene as fast as possible with no network and exits.
 #include "daemon/config.hpp"
+#include "daemon/fatal.hpp"
 #include "daemon/offline.hpp"
 #include "daemon/server.hpp"
 #include "daemon/startup.hpp"
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
+#include "transport/domain_option.hpp"
 #include "transport/version.hpp"
 
 #include <CLI/CLI.hpp>
@@ -33,7 +35,7 @@ int main(int argc, char** argv) {
                  "built-in classic toy at rest");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
   auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-231)")
-                     ->check(CLI::Range(0, transport::kMaxDomain))
+                     ->check(transport::domain_check())
                      ->capture_default_str();
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
   auto* rate =
@@ -123,28 +125,25 @@ int main(int argc, char** argv) {
          {std::pair{o.duration != 0, "--duration"}, {!o.events.empty(), "--events"},
           {!o.trajectory.empty(), "--trajectory"}, {!o.summary.empty(), "--summary"}})
       if (given) {
-        spdlog::error("{} is for --offline runs; a live server runs until it is stopped (add --offline)", option);
-        return 2;
+        return daemon::exit_with(
+            2, std::string(option) + " is for --offline runs; a live server runs until it is stopped (add --offline)");
       }
   }
   if (offline && !resimulate.empty()) return daemon::run_resimulation(resimulate, !quiet);
   if (!resimulate.empty()) {
-    spdlog::error("--resimulate runs offline: add --offline");
-    return 2;
+    return daemon::exit_with(2, "--resimulate runs offline: add --offline");
   }
   if (offline) {
     // The live server's outputs: an offline run has its own (--events, --trajectory, --summary).
     for (const auto& [given, option] : {std::pair{!c.server.record.empty(), "--record"},
                                         {!c.server.tick_log.empty(), "--tick-log"}, {!resume.empty(), "--resume"}})
       if (given) {
-        spdlog::error("{} is for the live server, not --offline (an offline run writes --events, --trajectory and "
-                      "--summary)",
-                      option);
-        return 2;
+        return daemon::exit_with(2, std::string(option) +
+                                        " is for the live server, not --offline (an offline run writes --events, "
+                                        "--trajectory and --summary)");
       }
     if (c.scene.empty() || o.duration <= 0) {
-      spdlog::error("--offline needs --scene FILE and --duration S (seconds > 0); see --help");
-      return 2;
+      return daemon::exit_with(2, "--offline needs --scene FILE and --duration S (seconds > 0); see --help");
     }
     o.scene = c.scene;
     o.progress = !quiet;
@@ -155,8 +154,7 @@ int main(int argc, char** argv) {
   try {
     session = resume.empty() ? daemon::first_session(c, o.overrides) : daemon::resumed_session(resume, c);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return daemon::exit_with(2, e.what());
   }
   static std::atomic<bool> stop{false};
   daemon::catch_stop_signals(stop);
@@ -171,10 +169,8 @@ int main(int argc, char** argv) {
     daemon::log_stop_reason();
     return rc;
   } catch (const daemon::OutputError& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return daemon::exit_with(2, e.what());
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 1;
+    return daemon::exit_with(1, e.what());
   }
 }

@@ -1,5 +1,5 @@
 #include "daemon/offline.hpp"
-
+#include "daemon/fatal.hpp"
 #include "scene/simulation.hpp"
 
 #include <nlohmann/json.hpp>
@@ -60,8 +60,7 @@ Outputs open_outputs(const OfflineOptions& o) {
 
 int run_offline(const OfflineOptions& o) {
   if (!(o.duration > 0) || !std::isfinite(o.duration)) {
-    spdlog::error("--duration must be a positive number of seconds (got {})", o.duration);
-    return 2;
+    return exit_with(2, fmt::format("--duration must be a positive number of seconds (got {})", o.duration));
   }
   std::optional<scene::Simulation> sim;
   Outputs out;
@@ -69,8 +68,7 @@ int run_offline(const OfflineOptions& o) {
     sim.emplace(scene::load_scene(o.scene, o.overrides));
     out = open_outputs(o);
   } catch (const std::exception& e) {  // SceneError carries file:line:column; the rest name what was wrong
-    spdlog::error("{}", e.what());
-    return 2;
+    return exit_with(2, e.what());
   }
   const scene::Scene& sc = sim->scene();
   const int blocks = sc.ladder.blocks;
@@ -120,12 +118,11 @@ int run_offline(const OfflineOptions& o) {
       }
     }
   } catch (const std::exception& e) {
-    spdlog::error("the simulation failed at t = {:.6f} s: {}", sim->time(), e.what());
     if (out.summary)
       *out.summary << json{{"scene", sc.name}, {"failed", true}, {"error", e.what()}, {"sim_time", sim->time()},
                            {"steps", sim->steps()}, {"events", counts}}.dump(2)
                    << '\n';
-    return 3;
+    return exit_with(3, fmt::format("the simulation failed at t = {:.6f} s: {}", sim->time(), e.what()));
   }
   const double wall = std::chrono::duration<double>(Clock::now() - started).count();
   const double rate = stepping > 0 ? static_cast<double>(sim->steps()) * blocks / stepping : 0.0;
@@ -171,8 +168,7 @@ int run_offline(const OfflineOptions& o) {
   if (out.trajectory) out.trajectory->flush();
   const bool written = (!out.events || *out.events) && (!out.trajectory || *out.trajectory) && (!out.summary || *out.summary);
   if (!written) {
-    spdlog::error("writing an output file failed (disk full?)");
-    return 2;
+    return exit_with(2, "writing an output file failed (disk full?)");
   }
   return 0;
 }

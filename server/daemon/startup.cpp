@@ -1,6 +1,7 @@
 #include "daemon/startup.hpp"
 
 #include "daemon/builtin_scene.hpp"
+#include "daemon/fatal.hpp"
 #include "daemon/resimulate.hpp"
 
 #include <spdlog/sinks/basic_file_sink.h>
@@ -134,8 +135,7 @@ int run_resimulation(const std::string& path, bool progress) {
   try {
     log = read_session_log(path);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
-    return 2;
+    return exit_with(2, e.what());
   }
   if (!log.damage.empty()) spdlog::warn("{}: {}; re-running what came before", path, log.damage);
   spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events", path, log.scenes.size(),
@@ -147,13 +147,11 @@ int run_resimulation(const std::string& path, bool progress) {
       if (progress) spdlog::info("... {} steps, {} states identical so far", steps, states);
     });
   } catch (const std::exception& e) {
-    spdlog::error("{}: {}", path, e.what());
-    return 2;
+    return exit_with(2, path + ": " + e.what());
   }
   if (!r.identical) {
-    spdlog::error("differs: {} ({} states and {} checkpoints identical before it)", r.difference, r.states,
-                  r.checkpoints);
-    return 1;
+    return exit_with(1, fmt::format("differs: {} ({} states and {} checkpoints identical before it)", r.difference,
+                                    r.states, r.checkpoints));
   }
   spdlog::info("identical to the last bit: {} states and {} checkpoints compared over {} steps ({} commands), up "
                "to t = {:.6f} s",

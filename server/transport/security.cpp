@@ -169,7 +169,7 @@ Identity load_identity(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
     throw SecurityError(dir + (fs::exists(dir, ec) ? ": a file, not an identity folder" : ": no such folder") +
-                        " (scripts/make-pki DIR --controller NAME makes DIR/NAME)");
+                        " (scripts/make-pki DIR --server, --controller or --viewer NAME makes DIR/NAME)");
   Identity id;
   id.dir = dir;
   const fs::path base = fs::absolute(dir, ec);

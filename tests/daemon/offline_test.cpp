@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -217,7 +218,13 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be >= 1 and at most"},
                         Case{scene + " --sim-id 'a b'", "server.sim_id 'a b' may hold only"},
                         Case{scene + " --set ladder.blocks=0", "ladder.blocks"},
-                        Case{scene + " --domain 232", "--domain: Value 232 not in range 0 to 231"},
+                        Case{scene + " --domain 232", "--domain: '232' is not a DDS domain id (0 to 231)"},
+                        Case{scene + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+                        // The log turned off still leaves the reason a run did not start.
+                        Case{"--offline" + scene + " --duration 1 --log-level off --set sim.dt=1",
+                             "ladderd: --set sim.dt=1: sim.dt must be >= 1e-07 and <= 0.1 (got 1)"},
+                        Case{scene + " --log-level off --security /no/such/dir",
+                             "/no/such/dir: no such folder (scripts/make-pki DIR --server, --controller or --viewer"},
                         Case{scene + " --realtime-priority 100", "--realtime-priority"},
                         Case{scene + " --rate 500 --spin-us 5000",
                              "server.spin_us must be from 0 to half the tick period (1000 us at 500 Hz)"},
@@ -304,6 +311,13 @@ TEST_F(Offline, AFailedRunExitsThreeAndSaysSo) {
                            " --summary " + path("sum.json"));
   ASSERT_EQ(r.code, 3) << r.output;
   EXPECT_NE(r.output.find("smaller sim.dt"), std::string::npos) << r.output;
+  // With the log off, the reason still comes, alone.
+  const Result quiet = ladderd("--offline --quiet --log-level off --scene " + kScenes + "free-chain.toml --duration 1"
+                               " --set ladder.blocks=2000 --set sim.integrator=symplectic_euler --set sim.dt=0.05"
+                               " --set solver.max_iterations=3");
+  ASSERT_EQ(quiet.code, 3) << quiet.output;
+  EXPECT_EQ(quiet.output.rfind("ladderd: the simulation failed at t = ", 0), 0u) << quiet.output;
+  EXPECT_EQ(std::count(quiet.output.begin(), quiet.output.end(), '\n'), 1) << quiet.output;
   const json s = json::parse(slurp(path("sum.json")));
   EXPECT_EQ(s["failed"], true);
   EXPECT_NE(s["error"].get<std::string>().find("1/64"), std::string::npos);

@@ -1,0 +1,22 @@
+// The reason ladderd exits with an error, which reaches the user even with --log-level off.
+#pragma once
+
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+#include <string>
+
+namespace ladder::daemon {
+
+// Logs `why` as an error and returns `code`, the exit code. With the log silenced (--log-level off, or a level above
+// error) `why` is written to standard error all the same: a run that fails must say why, and scripts that turn the
+// log off still get the reason with the code.
+inline int exit_with(int code, const std::string& why) {
+  if (spdlog::should_log(spdlog::level::err))
+    spdlog::error("{}", why);
+  else
+    std::cerr << "ladderd: " << why << std::endl;
+  return code;
+}
+
+}  // namespace ladder::daemon
