@@ -266,6 +266,10 @@ class World {
   const StepStats& last_step() const { return stats_; }
   // The adaptive step's next trial sub-step [s] (Options::adaptive), 0 before the first.
   double adaptive_step() const { return adaptive_h_; }
+  // The adaptive step's smallest sub-step [s], when a caller walks one step in several pieces (Ladder::advance): each
+  // piece's own h / 1024 would let the sub-steps shrink from piece to piece without end (3.9e-11 s was seen, a step
+  // taking minutes). 0 (the default): h / 1024 of each step_adaptive(h).
+  void set_adaptive_floor(double s) { adaptive_floor_ = s; }
   // Changes whenever positions (or the time) change; velocities alone do not change it. With structure(), lets a
   // caller reuse what it computed from the positions.
   std::uint64_t state_version() const { return state_version_; }
@@ -566,6 +570,7 @@ class World {
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
   double last_h_ = 0;
   double adaptive_h_ = 0;  // the adaptive step's next trial sub-step [s]; 0 = the whole step
+  double adaptive_floor_ = 0;  // set_adaptive_floor()
   std::vector<BodyState> whole_;  // scratch: the adaptive step's trial taken whole
 
   // Accelerations of kinematic bodies from their drives (the explicit integrators need them).

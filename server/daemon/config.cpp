@@ -134,14 +134,20 @@ void check_config(const DaemonConfig& c) {
     if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_' || ch == '.'))
       throw ConfigError("server.sim_id '" + s.sim_id + "' may hold only letters, digits, '-', '_' and '.'",
                         "server.sim_id");
-  positive(s.rates.physics, 100'000, "server.physics_rate");
+  // At least 1 Hz: a state goes out at least once a second and at most once a tick (0.5 Hz was refused as a
+  // publish rate below 1, blaming a rate the user had not given).
+  if (!(s.rates.physics >= kMinPublishRate && s.rates.physics <= 100'000))
+    throw ConfigError("server.physics_rate must be from 1 to 100000 ticks a second", "server.physics_rate");
   // The same bounds as `set` (session.hpp): below them the server would stop publishing or freeze the simulation.
   if (!(s.rates.publish >= kMinPublishRate && s.rates.publish <= s.rates.physics))
     throw ConfigError("server.publish_rate must be >= 1 and at most server.physics_rate (" +
                           scene::format_number(s.rates.publish) + " states a second against " +
                           scene::format_number(s.rates.physics) + " ticks a second)",
                       "server.publish_rate");
-  positive(s.stats_rate, 100, "server.stats_rate");
+  // (Below 0.01 Hz the next Stats would be hours away: 1e-300 Hz published none, as the publish rate once did.)
+  if (!(s.stats_rate >= kMinStatsRate && s.stats_rate <= 100))
+    throw ConfigError("server.stats_rate must be from " + scene::format_number(kMinStatsRate) + " to 100 Stats a second",
+                      "server.stats_rate");
   const double rtf = s.rates.real_time_factor;
   if (!(rtf == 0 || (rtf >= kMinRealTimeFactor && rtf <= kMaxRealTimeFactor)))
     throw ConfigError("server.real_time_factor must be from 0.01 to 1000, or 0 (as fast as possible)",
@@ -207,6 +213,8 @@ void load_config(const std::string& path, DaemonConfig& config) {
       }
     }
   }
+  // A physics rate below the default publish rate lowers it, when the file gives none (as --rate does).
+  if (!c.publish_rate_given) c.server.rates.publish = std::min(Rates{}.publish, c.server.rates.physics);
   try {
     check_config(c);
   } catch (const ConfigError& e) {

@@ -2,16 +2,18 @@
 // loop runs at. Plain values: the session checks commands against them, the configuration reads them.
 #pragma once
 
+#include "scene/scene.hpp"
+
 #include <cstdint>
 
 namespace ladder::daemon {
 
 // Bounds on what a user may ask for (ladderd.toml [commands]); beyond them a command is refused, not clamped.
 struct Limits {
-  double max_impulse = 1.0;    // [N s] poke (a 25 g block would leave at 40 m/s)
-  double max_force = 100.0;    // [N] push
-  double max_duration = 60.0;  // [s] push
-  double reach = 10.0;         // [m] targets and points must lie this close to the origin
+  double max_impulse = scene::kMaxImpulse;    // [N s] poke
+  double max_force = scene::kMaxForce;        // [N] push
+  double max_duration = scene::kMaxDuration;  // [s] push
+  double reach = scene::kReach;               // [m] targets and points must lie this close to the origin
   std::uint32_t max_step_count = 100'000;  // one step command
 };
 
@@ -19,6 +21,7 @@ struct Limits {
 // publishing (at 1e-300 Hz the next state is due in 1e300 s) or the simulation would freeze (a real-time factor of
 // 1e-300 owes one step every 1e297 s). 1 Hz keeps a client's view of a running ladder at most a second old.
 constexpr double kMinPublishRate = 1;        // [Hz]
+constexpr double kMinStatsRate = 0.01;       // [Hz] ladderd.toml's server.stats_rate: one Stats every 100 s
 constexpr double kMinRealTimeFactor = 0.01;  // besides 0 (as fast as possible): 10 ms of sim time per second
 constexpr double kMaxRealTimeFactor = 1000;
 // The largest grab stiffness and angle. A hand is softer than 1e6 N/m (the grip's frequency is capped at 0.2/dt in

@@ -160,8 +160,12 @@ void Physics::run_step() {
     session_.step();
   } catch (const scene::Interrupted& e) {
     interrupted_ = true;
-    spdlog::info("stopping: the step at t = {:.6f} s interrupted after {} of its {} sub-steps", finite_time(),
-                 e.substeps_taken, e.substeps);
+    if (e.substeps > 0)
+      spdlog::info("stopping: the step at t = {:.6f} s interrupted after {} of its {} sub-steps", finite_time(),
+                   e.substeps_taken, e.substeps);
+    else
+      spdlog::info("stopping: the step at t = {:.6f} s interrupted after {} adaptive sub-steps", finite_time(),
+                   e.substeps_taken);
     return;
   } catch (const std::runtime_error& e) {
     spdlog::error("step failed, simulation paused: {}", e.what());

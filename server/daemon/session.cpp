@@ -58,23 +58,6 @@ void within_reach(const Vec2& v, const char* name, double reach) {
                                 " m from the origin, beyond the reach of " + number(reach) + " m (commands.reach)");
 }
 
-// A point on block i, `local` from its centre in the block's frame (x across its thickness, y along its length), must
-// lie in the block's rectangle (1 % slack for rounding). (A circle of the half-diagonal let a point 30 mm beside a
-// 13 mm thick block through.)
-void on_block(const model::Ladder& l, int i, const Vec2& local, const char* name) {
-  const double along = 0.5 * l.spec().length, across = 0.5 * l.spec().thickness;
-  if (std::abs(local.x()) > 1.01 * across || std::abs(local.y()) > 1.01 * along) {
-    const auto mm = [](double v) {  // four digits: beyond them the distance is rounding (1.1e-14 mm)
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.4g", std::abs(v * 1e3) < 1e-9 ? 0.0 : v * 1e3);
-      return std::string(buf);
-    };
-    throw std::invalid_argument(std::string(name) + " is " + mm(local.x()) + " mm across and " + mm(local.y()) +
-                                " mm along block " + std::to_string(i) + " from its centre, outside the block (at " +
-                                "most " + mm(across) + " mm across and " + mm(along) + " mm along)");
-  }
-}
-
 // A grip's stiffness: 0 (the default) to kMaxStiffness.
 void check_stiffness(double v) {
   finite(v, "the stiffness");
@@ -103,8 +86,9 @@ struct Check {
     l.check_block(p.block);
     if (p.at) {
       within_reach(*p.at, "the point", limits.reach);  // (finite; and 1e308 away, its offset from the block is not)
-      on_block(l, p.block, core::Rot::of(l.block_angle(p.block)).apply_inverse(*p.at - l.block_centre(p.block)),
-               "the point");
+      l.check_on_block(p.block,
+                       core::Rot::of(l.block_angle(p.block)).apply_inverse(*p.at - l.block_centre(p.block)),
+                       "the point");
     }
   }
   void operator()(const model::Push& p) const {
@@ -115,14 +99,14 @@ struct Check {
       throw std::invalid_argument("the duration must be > 0 and at most " + number(limits.max_duration) +
                                   " s (commands.max_duration), not " + number(p.duration));
     l.check_block(p.block);
-    on_block(l, p.block, p.at, "the point");
+    l.check_on_block(p.block, p.at, "the point");
   }
   void operator()(const model::Grab& g) const {
     finite(g.local, "the point");
     check_stiffness(g.stiffness);
     check_angle(g.angle);
     l.check_block(g.block);
-    on_block(l, g.block, g.local, "the point");
+    l.check_on_block(g.block, g.local, "the point");
     if (g.target) within_reach(*g.target, "the target", limits.reach);
   }
   void operator()(const model::Drag& d) const {

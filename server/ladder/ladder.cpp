@@ -437,7 +437,12 @@ std::string Ladder::too_violent(double h, const std::string& usual) const {
     return "the ladder is " + format_number(far) + " m from the origin, where coordinates are rounded to " +
            format_number(spacing) + " m, too coarse for its hinges: no smaller sim.dt can help (a free ladder falls "
            "for ever; reset it)";
-  return "the motion is too violent for sim.dt = " + format_number(h) + " s and these settings (" + usual + ")";
+  // With the adaptive step, h is one of its sub-steps: sim.dt is the step the user set.
+  const std::string step = world_.options().adaptive && frame_h_ > 0 && h < frame_h_
+                               ? format_number(frame_h_) + " s (in adaptive sub-steps, the last of " +
+                                     format_number(h) + " s)"
+                               : format_number(h) + " s";
+  return "the motion is too violent for sim.dt = " + step + " and these settings (" + usual + ")";
 }
 
 void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
@@ -486,15 +491,21 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
 // location's trial steps are single steps, each a fraction of the piece the error control just covered (usually in
 // one sub-step, sometimes a few): with error control of their own, dozens of trials each cut into up to 1024
 // sub-steps made a violent frame cost minutes.
-void Ladder::advance(double h) {
+void Ladder::advance(double h, const std::function<bool()>& interrupted) {
+  frame_h_ = h;
   apply_grips(h);
   if (!world_.options().adaptive) {
     advance_by(h);
     return;
   }
-  for (double done = 0; h - done > 1e-9 * h;) {
+  // No sub-step below h / 1024, however the pieces before it went: each step then costs at most 1024 sub-steps, as
+  // docs/scenes.md says (sim.error_tolerance).
+  world_.set_adaptive_floor(h / 1024);
+  int pieces = 0;
+  for (double done = 0; h - done > 1e-9 * h; ++pieces) {
+    if (pieces > 0 && interrupted && interrupted()) throw Interrupted{pieces};
     const double left = h - done, trial = world_.adaptive_step();
-    const double s = core::next_piece(trial > 0 ? trial : left, left);
+    const double s = core::next_piece(trial > 0 ? std::max(trial, h / 1024) : left, left);
     advance_by(s);
     done += s;
   }
@@ -852,6 +863,20 @@ void Ladder::check_block(int i) const {
     throw std::invalid_argument("no block " + std::to_string(i) + " (blocks are 0.." + std::to_string(spec_.blocks - 1) + ")");
 }
 
+void Ladder::check_on_block(int i, const Vec2& local, const char* what) const {
+  check_block(i);
+  const double along = 0.5 * spec_.length, across = 0.5 * spec_.thickness;
+  if (std::abs(local.x()) <= 1.01 * across && std::abs(local.y()) <= 1.01 * along) return;  // (false for NaN)
+  const auto mm = [](double v) {  // four digits: beyond them the distance is rounding (1.1e-14 mm)
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.4g", std::abs(v * 1e3) < 1e-9 ? 0.0 : v * 1e3);
+    return std::string(buf);
+  };
+  throw std::invalid_argument(std::string(what) + " is " + mm(local.x()) + " mm across and " + mm(local.y()) +
+                              " mm along block " + std::to_string(i) + " from its centre, outside the block (at most " +
+                              mm(across) + " mm across and " + mm(along) + " mm along)");
+}
+
 void Ladder::check_hinge(int k) const {
   if (k < 0 || k >= spec_.blocks)
     throw std::invalid_argument("no hinge " + std::to_string(k) + " (hinges are 0.." + std::to_string(spec_.blocks - 1) +
@@ -932,6 +957,9 @@ void Ladder::join_hinge(int k) {
 
 double Ladder::poke(int block, const std::optional<Vec2>& point, const Vec2& impulse) {
   check_block(block);
+  // (A point off the block would turn it by the lever of a point it does not have: 1e3 rad/s from 1 N s at 5 m.)
+  if (point)
+    check_on_block(block, core::Rot::of(block_angle(block)).apply_inverse(*point - block_centre(block)), "the point");
   return world_.apply_impulse(block, point ? *point : block_centre(block), impulse);
 }
 
@@ -941,6 +969,7 @@ void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double 
   // The held block itself: a force on it does nothing. (A block locked to it is pushed: the force moves no block,
   // but it weighs in the lock's moments, and can open it: Stop.PairPressedFaceToFaceLocksAndOpensAboutTheEndPulled.)
   if (world_.is_kinematic(block)) throw std::invalid_argument("push: the block is held and does not move freely");
+  check_on_block(block, local_point, "the point");
   world_.add_force(block, local_point, force, time() + duration);
 }
 

@@ -25,6 +25,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -125,7 +126,12 @@ class Ladder {
   Ladder& operator=(const Ladder&) = delete;
 
   // Advances the simulation by h, locating every flip-flop and lock inside the step and applying Algorithm 1.
-  void advance(double h);
+  // With the adaptive step, `interrupted` (when given) is asked between two of its sub-steps, and true ends the step
+  // there by throwing Interrupted: the ladder is left at the end of the last sub-step, inside the step.
+  void advance(double h, const std::function<bool()>& interrupted = {});
+  struct Interrupted {
+    int substeps_taken = 0;
+  };
 
   // --- interventions; each throws std::invalid_argument with the reason when it cannot be done ---
   // The one dispatch of an action (a client's, a log's or a timeline's) to the interventions below; what the
@@ -194,6 +200,9 @@ class Ladder {
   static int particle(int block, int c) { return 5 * block + c; }
   // Throws std::invalid_argument naming the valid range when block i does not exist.
   void check_block(int i) const;
+  // Throws std::invalid_argument naming `what` unless `local` (from block i's centre, in its frame: x across its
+  // thickness, y along its length) lies on the block, within 1 % of its half-sizes for rounding.
+  void check_on_block(int i, const Vec2& local, const char* what) const;
 
  private:
   struct Hand;  // the held top block's prescribed motion
@@ -248,6 +257,7 @@ class Ladder {
   double block_mass(int i) const { return spec_.masses.empty() ? spec_.mass : spec_.masses[static_cast<size_t>(i)]; }
   double inertia_factor_ = 0;  // a block's moment of inertia about its centre over its mass [m^2]
   double step_h_ = 0;          // the step advance_by() is taking (contact_moments() steps a thousandth of it)
+  double frame_h_ = 0;         // the step advance() is taking: sim.dt, of which step_h_ is a piece when adaptive
   core::World probe_;          // contact_moments()'s copy of the world for its trial step (reused buffers)
   std::vector<double> moments_;  // contact_moments()'s answer (reused)
   // contact_moments()'s moments of the folded pairs' face contacts about their other ends, where the pair would open

@@ -152,11 +152,14 @@ constexpr std::array kKeys{
     KeyDef{.name = "timeline.hinge", .kind = Kind::Integer, .range = at_least(0),
            .help = "hinge to break or join, required by both; hinge 0 is the top block's hold or pin",
            .range_text = ">= 0 and < ladder.blocks"},
-    KeyDef{.name = "timeline.impulse", .kind = Kind::Pair, .help = "poke impulse, required by poke [N s]"},
+    KeyDef{.name = "timeline.impulse", .kind = Kind::Pair, .help = "poke impulse, required by poke [N s]",
+           .range_text = "size <= 1 (the server's default commands.max_impulse)"},
     KeyDef{.name = "timeline.at", .kind = Kind::Pair,
-           .help = "poke: world point; push: point in the block's frame; default the block's centre [m]"},
-    KeyDef{.name = "timeline.force", .kind = Kind::Pair, .help = "push force, required by push [N]"},
-    KeyDef{.name = "timeline.duration", .kind = Kind::Number, .range = above(0),
+           .help = "poke: world point; push: point in the block's frame; default the block's centre [m]",
+           .range_text = "on the block when the command comes; a poke's within 10 m of the origin"},
+    KeyDef{.name = "timeline.force", .kind = Kind::Pair, .help = "push force, required by push [N]",
+           .range_text = "size <= 100 (the server's default commands.max_force)"},
+    KeyDef{.name = "timeline.duration", .kind = Kind::Number, .range = {0, kMaxDuration, true, false},
            .help = "push duration, required by push [s]"},
 };
 
@@ -791,16 +794,25 @@ TimedCommand read_entry(const toml::table& e, const Site& s, int blocks) {
   const Range index{0, static_cast<double>(blocks), false, true};  // blocks and hinges are both 0 .. blocks-1
   const auto integer = [&](const char* f) { return to_int(*e.get(f), s.field(f), index); };
   const auto pair = [&](const char* f) { return to_vec2(*e.get(f), s.field(f)); };
+  const auto sized = [&](const char* f, double limit, const char* unit, const char* what) {
+    const core::Vec2 v = pair(f);
+    const double size = std::hypot(v.x(), v.y());  // (hypot: the sum of squares of 1e300 would overflow)
+    if (!(size <= limit))
+      s.fail(*e.get(f), s.field(f).name + " must be at most " + format_number(limit) + " " + unit + " " + what +
+                            " (got " + format_number(size) + " " + unit + ")");
+    return v;
+  };
   const toml::node* at = e.get("at");
   if (name == "tip") {
     c.action = model::Tip{};
   } else if (name == "poke") {
     const int block = integer("block");
-    const core::Vec2 impulse = pair("impulse");
-    c.action = model::Poke{block, impulse, at ? std::optional(pair("at")) : std::nullopt};
+    const core::Vec2 impulse = sized("impulse", kMaxImpulse, "N s", "in size");
+    c.action = model::Poke{block, impulse,
+                           at ? std::optional(sized("at", kReach, "m", "from the origin")) : std::nullopt};
   } else if (name == "push") {
     const int block = integer("block");
-    const core::Vec2 force = pair("force");
+    const core::Vec2 force = sized("force", kMaxForce, "N", "in size");
     const double duration = to_number(*e.get("duration"), s.field("duration"), key_def("timeline.duration").range);
     c.action = model::Push{block, force, at ? pair("at") : core::Vec2::Zero(), duration};
   } else if (name == "break") {

@@ -84,6 +84,15 @@ Scene with_live_setting(const Scene& scene, const std::string& setting, std::str
 // published with them for the viewer (SceneInfo's options), the only program that uses it.
 std::string live_settings(const Scene& scene);
 
+// The bounds of a timeline command's values, checked where the file gives them: the server's default command
+// limits (ladderd.toml [commands], whose defaults these are), so that a scene a server loads cannot script what the
+// server would refuse a client (a poke of 1e300 N s made a non-finite state). Whether a point lies on its block is
+// the ladder's own check, when the command comes (model::Ladder::check_on_block).
+constexpr double kMaxImpulse = 1.0;    // [N s] poke (a 25 g block would leave at 40 m/s)
+constexpr double kMaxForce = 100.0;    // [N] push
+constexpr double kMaxDuration = 60.0;  // [s] push
+constexpr double kReach = 10.0;        // [m] a poke's world point, from the origin
+
 // The shortest text that reads back as the same double ("0.001", "1e-12", "-1"; whole numbers as integers, "10000000"
 // rather than "1e+07"), as every message about a value shows it.
 std::string format_number(double v);

@@ -34,9 +34,11 @@ void Simulation::step() {
   try {
     for (int i = 0; i < substeps; ++i) {
       if (i > 0 && interrupted_ && interrupted_()) throw Interrupted(i, substeps);
-      ladder_.advance(dt_ / substeps);
+      ladder_.advance(dt_ / substeps, interrupted_);
       max_step_residual_ = std::max(max_step_residual_, ladder_.world().last_step().residual);
     }
+  } catch (const model::Ladder::Interrupted& e) {  // between two adaptive sub-steps
+    throw Interrupted(e.substeps_taken, 0);
   } catch (const std::runtime_error&) {
     // The ladder stopped at the last state its watchdog accepted, which lies inside this step when the step was cut
     // at an event (a flip-flop, a stop) or into sub-steps: the clock goes on from that state's own time.

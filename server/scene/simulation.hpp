@@ -20,10 +20,11 @@ struct Refusal {
   std::string reason;
 };
 
-// Thrown by Simulation::step() when its interrupt asked it to stop between two sub-steps: the ladder is left at the
-// end of the last sub-step taken, inside the step, and the simulation is not to be stepped again.
+// Thrown by Simulation::step() when its interrupt asked it to stop between two sub-steps (of sim.substeps, or of the
+// adaptive step): the ladder is left at the end of the last sub-step taken, inside the step, and the simulation is not
+// to be stepped again.
 struct Interrupted : std::exception {
-  int substeps_taken = 0, substeps = 0;
+  int substeps_taken = 0, substeps = 0;  // substeps 0: the adaptive step's, whose number is not known before
   Interrupted(int taken, int of) : substeps_taken(taken), substeps(of) {}
   const char* what() const noexcept override { return "step interrupted between two sub-steps"; }
 };
@@ -33,7 +34,8 @@ class Simulation {
   explicit Simulation(const Scene& scene);
 
   // Asked between two sub-steps of a step; true makes step() throw Interrupted there. A step of many sub-steps of a
-  // long chain can take minutes (sim.substeps up to 1000): a server that is told to stop does not wait for its end.
+  // long chain can take minutes (sim.substeps up to 1000, or an adaptive step's up to 1024 with many events): a
+  // server that is told to stop does not wait for its end.
   void set_interrupt(std::function<bool()> interrupted) { interrupted_ = std::move(interrupted); }
 
   // Advances one time step of dt (in scene().substeps equal steps), first applying every timeline command due by

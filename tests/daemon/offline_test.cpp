@@ -215,6 +215,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
+                        Case{scene + " --rate 0.5", "server.physics_rate must be from 1 to 100000 ticks a second "
+                                                    "(given as --rate 0.5)"},
                         Case{scene + " --rate 100 --publish-rate 200", "server.publish_rate must be >= 1 and at most"},
                         Case{scene + " --sim-id 'a b'", "server.sim_id 'a b' may hold only"},
                         Case{scene + " --set ladder.blocks=0", "ladder.blocks"},
@@ -244,7 +246,7 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
 // A bad configuration file is refused with the position of the offending value, before anything starts.
 TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
   struct Case { std::string text, words; };
-  for (const Case& c : {Case{"[server]\nphysics_rate = -5\n", ":2:16: server.physics_rate must be > 0"},
+  for (const Case& c : {Case{"[server]\nphysics_rate = -5\n", ":2:16: server.physics_rate must be from 1 to 100000"},
                         Case{"[server]\nrate = 5\n", ":2:1: unknown key server.rate"},
                         Case{"[server]\ndomain = \"zero\"\n", ":2:10: server.domain must be an integer"},
                         Case{"[server]\ndomain = 232\n", ":2:10: server.domain must be from 0 to 231"},
@@ -258,6 +260,7 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[server]\nphysics_rate = 30\npublish_rate = 60\n",
                              "ladderd.toml:3:16: server.publish_rate must be >= 1 and at most server.physics_rate (60 "
                              "states a second against 30 ticks a second)"},
+                        Case{"[server]\nstats_rate = 1e-300\n", ":2:14: server.stats_rate must be from 0.01 to 100"},
                         Case{"[server]\nscenes_dir = \"no-such-folder\"\n",
                              ":2:14: server.scenes_dir must be a folder of scenes: '"},
                         Case{"[server\n", ":1:8: "}}) {
@@ -287,6 +290,22 @@ TEST_F(Offline, APhysicsRateBelowSixtyHertzPublishesAtIt) {
   EXPECT_NE(server.log().find(" 30 Hz physics, 30 Hz states"), std::string::npos) << server.log();
   server.signal(SIGTERM);
   EXPECT_TRUE(server.wait_exit(std::chrono::seconds(10)).has_value()) << server.log();
+  // The same from a configuration file (which checked the default publish rate against its physics rate, and
+  // refused it); and a --rate over the file's lower one publishes at the default 60 again.
+  std::ofstream(path("ladderd.toml")) << "[server]\nphysics_rate = 30\n";
+  for (const auto& [rate, said] : {std::pair{"", " 30 Hz physics, 30 Hz states"},
+                                   {"1000", " 1000 Hz physics, 60 Hz states"}}) {
+    std::vector<std::string> args{kLadderd, "--config", path("ladderd.toml"), "--domain", domain, "--sim-id", id};
+    if (*rate) args.insert(args.end(), {"--rate", rate});
+    ladder::test::Process from_file(args, path(std::string("file") + rate + ".log"));
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (from_file.log().find("serving") == std::string::npos && from_file.log().find("rror") == std::string::npos &&
+           std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    EXPECT_NE(from_file.log().find(said), std::string::npos) << from_file.log();
+    from_file.signal(SIGTERM);
+    EXPECT_TRUE(from_file.wait_exit(std::chrono::seconds(10)).has_value()) << from_file.log();
+  }
   const Result r = ladderd("--rate 30 --publish-rate 60 --domain " + domain);
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("server.publish_rate must be >= 1 and at most server.physics_rate (60 states a second "

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -254,6 +255,43 @@ TEST(Adaptive, FiftyMillisecondFramesKeepTheClassicRipple) {
     EXPECT_NEAR(adaptive[i].second, fixed[i].second, 2e-3) << "flip-flop " << i;
   }
   EXPECT_EQ(scene::accuracy_of(shipped("free-chain.toml", {"sim.adaptive=true"})), "custom");
+}
+
+// An error tolerance far below the solver's (1e-12 m against 1e-6 m: unmeetable, docs/scenes.md) costs each step at
+// most 1024 sub-steps, none shorter than sim.dt / 1024, and the classic tip runs through. Before, each piece of a
+// step shrank the next piece's floor: sub-steps of 3.9e-11 s, and the tip failed ("energy jump of 8.5e14 J ... too
+// violent for sim.dt = 3.88e-11 s"); a 1000-block ladder took minutes a step. And a stop cuts such a step between
+// two of its sub-steps: the third time it is asked, after three sub-steps.
+TEST(Adaptive, AnUnmeetableToleranceCostsAtMostTheSmallestSubStepsAndAStopCutsBetweenThem) {
+  const scene::Scene sc = shipped("classic.toml", {"sim.adaptive=true", "sim.error_tolerance=1e-12",
+                                                   "solver.tolerance=1e-6"});
+  scene::Simulation sim(sc);
+  int pieces = 0, most = 0;  // the step's sub-steps, counted by the interrupt asked between two of them
+  sim.set_interrupt([&pieces] {
+    ++pieces;
+    return false;
+  });
+  while (sim.time() < 0.7) {  // through the tip at 0.5 s
+    pieces = 1;
+    ASSERT_NO_THROW(sim.step()) << "t = " << sim.time();
+    most = std::max(most, pieces);
+  }
+  // 1024 of sim.dt / 1024, and a few more where a step is cut at an event (a flip-flop, a stop) inside a sub-step.
+  EXPECT_GE(most, 1024);
+  EXPECT_LE(most, 1040);
+
+  const double t0 = sim.ladder().time();
+  int asked = 0;
+  sim.set_interrupt([&asked] { return ++asked == 3; });
+  try {
+    sim.step();
+    FAIL() << "the step was not interrupted";
+  } catch (const scene::Interrupted& e) {
+    EXPECT_EQ(e.substeps_taken, 3);
+    EXPECT_EQ(e.substeps, 0);  // the adaptive step's
+  }
+  EXPECT_EQ(asked, 3);
+  EXPECT_NEAR(sim.ladder().time() - t0, 3 * sc.dt / 1024, 1e-12);
 }
 
 }  // namespace

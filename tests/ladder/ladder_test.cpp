@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <map>
 #include <numbers>
@@ -43,6 +44,44 @@ Record run(scene::Simulation& sim, double until) {
     EXPECT_TRUE(sim.take_refusals().empty());
   }
   return r;
+}
+
+// A timeline's poke or push at a point off its block is the ladder's to refuse when it comes, as the server refuses
+// a client's (a poke 5 m from a 13 mm block spun it at 1e3 rad/s): a refusal with the entry's place in the file, and
+// the ladder left as it was. The same entries with points on their blocks are applied.
+TEST(Timeline, APokeOrPushOffItsBlockIsRefusedWithItsPlaceInTheFile) {
+  const auto run_with = [](const std::string& poke_at, const std::string& push_at) {
+    scene::Simulation sim(scene::parse_scene("[ladder]\nblocks = 3\n"
+                                             "[[timeline]]\nt = 0.01\ncommand = \"poke\"\nblock = 2\n"
+                                             "impulse = [0.001, 0]\nat = " + poke_at + "\n"
+                                             "[[timeline]]\nt = 0.01\ncommand = \"push\"\nblock = 1\n"
+                                             "force = [0.1, 0]\nduration = 0.01\nat = " + push_at + "\n",
+                                             "<string>", {}));
+    const double e0 = sim.ladder().energy();
+    while (sim.time() < 0.02) sim.step();
+    return std::pair{sim.take_refusals(), sim.ladder().energy() - e0};
+  };
+  const auto [refused, gained] = run_with("[0.5, 0]", "[0.1, 0]");
+  ASSERT_EQ(refused.size(), 2u);
+  EXPECT_EQ(refused[0].where, "<string>:3:1");
+  EXPECT_NE(refused[0].reason.find("the point is "), std::string::npos) << refused[0].reason;
+  EXPECT_NE(refused[0].reason.find(" along block 2 from its centre, outside the block (at most 6.5 mm across and 32 "
+                                   "mm along)"),
+            std::string::npos)
+      << refused[0].reason;
+  EXPECT_EQ(refused[1].where, "<string>:9:1");
+  EXPECT_EQ(refused[1].reason, "the point is 100 mm across and 0 mm along block 1 from its centre, outside the block "
+                               "(at most 6.5 mm across and 32 mm along)");
+  EXPECT_LT(std::abs(gained), 1e-12);  // nothing was applied
+  // On their blocks: the poke at block 2's centre (the world point, where the hanging ladder has it) and the push at
+  // block 1's face are applied, and the ladder moves.
+  scene::Simulation probe(scene::parse_scene("[ladder]\nblocks = 3\n", "<string>", {}));
+  const core::Vec2 c2 = probe.ladder().block_centre(2);
+  char at[64];
+  std::snprintf(at, sizeof at, "[%.17g, %.17g]", c2.x(), c2.y());
+  const auto [none, moved] = run_with(at, "[0.0065, 0]");
+  EXPECT_TRUE(none.empty()) << none.front().reason;
+  EXPECT_GT(moved, 1e-6);
 }
 
 // classic.toml: the held top block is tipped once at 0.5 s. The ripple reaches hinges 1..5 in order; after a minute
@@ -342,7 +381,8 @@ TEST(Interventions, RefusedWithAReasonAndNothingChanges) {
   };
   expect_refused([&] { l.poke(7, core::Vec2(0, 0), {0.01, 0}); }, "no block 7");
   expect_refused([&] { l.poke(0, core::Vec2(0, 0), {0.01, 0}); }, "held");
-  expect_refused([&] { l.poke(2, core::Vec2(0, 0), {std::nan(""), 0}); }, "finite");
+  expect_refused([&] { l.poke(2, l.block_centre(2), {std::nan(""), 0}); }, "finite");
+  expect_refused([&] { l.poke(2, core::Vec2(0, 0), {0.01, 0}); }, "outside the block");
   expect_refused([&] { l.break_hinge(9); }, "no hinge 9");
   expect_refused([&] { l.join_hinge(2); }, "not broken");
   expect_refused([&] { l.push(1, {0, 0}, {1, 0}, -1); }, "duration");

@@ -459,7 +459,17 @@ TEST(Errors, TimelineValues) {
   expect_error("[[timeline]]\nt = -1\ncommand = \"tip\"\n", "<string>:2:5: ", {"timeline[0].t must be >= 0 (got -1)"});
   expect_error("[[timeline]]\nt = 1\ncommand = \"jump\"\n", "<string>:3:11: ", {"timeline[0].command must be tip"});
   expect_error("[[timeline]]\nt = 0\ncommand = \"push\"\nblock = 1\nforce = [1, 0]\nduration = 0\n", "<string>:6:12: ",
-               {"timeline[0].duration must be > 0 (got 0)"});
+               {"timeline[0].duration must be > 0 and <= 60 (got 0)"});
+  // Held to the server's default command limits where the file gives them: a scene a server loads cannot script a
+  // poke the server would refuse a client (1e300 N s made a non-finite state, and the server stopped publishing).
+  expect_error("[[timeline]]\nt = 0\ncommand = \"poke\"\nblock = 1\nimpulse = [1e300, 0]\n", "<string>:5:11: ",
+               {"timeline[0].impulse must be at most 1 N s in size (got 1e+300 N s)"});
+  expect_error("[[timeline]]\nt = 0\ncommand = \"poke\"\nblock = 1\nimpulse = [0.1, 0]\nat = [5, 9]\n",
+               "<string>:6:6: ", {"timeline[0].at must be at most 10 m from the origin (got 10.295630140987 m)"});
+  expect_error("[[timeline]]\nt = 0\ncommand = \"push\"\nblock = 1\nforce = [0, 101]\nduration = 1\n",
+               "<string>:5:9: ", {"timeline[0].force must be at most 100 N in size (got 101 N)"});
+  expect_error("[[timeline]]\nt = 0\ncommand = \"push\"\nblock = 1\nforce = [0, 1]\nduration = 1e9\n",
+               "<string>:6:12: ", {"timeline[0].duration must be > 0 and <= 60 (got 1000000000)"});
   expect_error("[[timeline]]\nt = 0\ncommand = \"poke\"\nblock = 1\nimpulse = [1, 0]\nat = [1]\n", "<string>:6:6: ",
                {"timeline[0].at must have exactly 2 elements"});
   expect_error("timeline = [1]\n", "<string>:1:13: ", {"timeline[0] must be a table, not an integer"});
