@@ -1,5 +1,6 @@
 #include "daemon/config.hpp"
 
+#include "daemon/startup.hpp"
 #include "scene/scene.hpp"
 #include "transport/dds.hpp"
 
@@ -210,6 +211,21 @@ void load_config(const std::string& path, DaemonConfig& config) {
         it->read(node, c, dir);
       } catch (const std::invalid_argument& e) {
         throw ConfigError(where(path, node.source()) + ": " + name + " " + e.what(), name);
+      }
+    }
+  }
+  // server.scene as --scene takes it: a file (beside the configuration file), else the name of one in the scenes
+  // folder ("double-ripple"); which, is known once the whole file (server.scenes_dir) has been read.
+  if (const toml::node* n = root.at_path("server.scene").node(); n && !c.scene.empty()) {
+    std::error_code ec;
+    const std::string given(text(*n));
+    if (!fs::is_regular_file(c.scene, ec)) {
+      try {
+        c.scene = find_scene(given.find('/') == std::string::npos ? given : c.scene, c.server.scenes_dir);
+      } catch (const std::exception& e) {
+        std::string why = e.what();
+        if (why.starts_with("--scene ")) why = why.substr(8);
+        throw ConfigError(where(path, n->source()) + ": server.scene " + why, "server.scene");
       }
     }
   }

@@ -71,6 +71,9 @@ int run_offline(const OfflineOptions& o) {
     return exit_with(2, e.what());
   }
   const scene::Scene& sc = sim->scene();
+  if (o.duration < 0.5 * sc.dt)  // (the run stops at the step whose end is within half a step of --duration)
+    return exit_with(2, fmt::format("--duration {} s is shorter than half a step (sim.dt = {} s): no step would run",
+                                    o.duration, sc.dt));
   const int blocks = sc.ladder.blocks;
   spdlog::info("scene '{}' ({}): {} blocks, dt {} s, {}, solver {}, {} s of simulated time", sc.name, sc.source, blocks,
                sc.dt, core::to_string(sc.options.integrator), core::to_string(sc.options.solver), o.duration);
@@ -164,12 +167,12 @@ int run_offline(const OfflineOptions& o) {
                lost.total(), removed(EventKind::FlipFlop), removed(EventKind::Impact), removed(EventKind::Lock),
                lost.motion,
                flips > 0 ? fmt::format("; {:.3g} J per flip-flop", ladder.lost_by_last_flip() / flips) : "");
-  if (out.events) out.events->flush();
-  if (out.trajectory) out.trajectory->flush();
-  const bool written = (!out.events || *out.events) && (!out.trajectory || *out.trajectory) && (!out.summary || *out.summary);
-  if (!written) {
-    return exit_with(2, "writing an output file failed (disk full?)");
-  }
+  std::string failed;  // the files whose writing failed, by name
+  for (const auto& [file, path] : {std::pair{out.events.get(), &o.events}, {out.trajectory.get(), &o.trajectory},
+                                   {out.summary.get(), &o.summary}})
+    if (file && !file->flush())
+      failed += (failed.empty() ? "" : ", ") + *path;
+  if (!failed.empty()) return exit_with(2, "writing " + failed + " failed (is the disk full?)");
   return 0;
 }
 

@@ -108,8 +108,13 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   if (!tick_log.complete())
     spdlog::warn("the tick log {} is incomplete: writing to it failed", config.tick_log);
   if (log) {
+    // (A session with no command never synced: a log on a full disk closed without a word.)
+    const bool complete = log->sync(std::chrono::seconds(5));
     log.reset();  // writes what is queued, flushes, closes
-    spdlog::info("session log {} closed", config.record);
+    if (complete)
+      spdlog::info("session log {} closed", config.record);
+    else
+      spdlog::warn("the session log {} is incomplete: writing to it failed or took over 5 s", config.record);
   }
   if (physics_error) std::rethrow_exception(physics_error);
   return 0;

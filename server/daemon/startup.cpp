@@ -80,6 +80,8 @@ std::string find_scene(const std::string& scene, const std::string& scenes_dir) 
   const auto not_a_folder = [&] {
     if (fs::is_directory(scene, ec))
       throw std::runtime_error("--scene " + scene + ": a folder, not a scene file (a scene is a .toml file)");
+    if (fs::exists(scene, ec))  // (/dev/null, a pipe: read once, or never ending)
+      throw std::runtime_error("--scene " + scene + ": not a regular file (a scene is a .toml file)");
   };
   if (scene.find('/') != std::string::npos || scene.starts_with(".")) {
     not_a_folder();

@@ -69,7 +69,7 @@ constexpr std::array kKeys{
            .help = "number of blocks; without it, the length of ladder.masses"},
     KeyDef{.name = "ladder.length", .kind = Kind::Number, .range = between(1e-3, 10), .help = "block length [m]"},
     KeyDef{.name = "ladder.thickness", .kind = Kind::Number, .range = between(1e-4, 10), .help = "block thickness [m]"},
-    KeyDef{.name = "ladder.depth", .kind = Kind::Number, .range = above(0),
+    KeyDef{.name = "ladder.depth", .kind = Kind::Number, .range = {0, 10, true, false},
            .help = "block depth into the page, drawn by the viewer only (the model is 2-D) [m]"},
     // The shape and the masses are bounded where the step has been run (the classic scene tipped, 3 s at 1 ms, at each
     // bound and with masses alternating between the two); 1e-300 kg made the first state non-finite.
@@ -95,7 +95,8 @@ constexpr std::array kKeys{
     KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
            .help = "pull of a straight pair's contact above which a lock lets go, or a meeting with the stop is an "
                    "impact [N m]"},
-    KeyDef{.name = "ladder.capture_distance", .kind = Kind::Number, .range = at_least(0),
+    // (At 1e300 a join pulled back blocks that had fallen 17 km, 2e4 J removed; a hand reaches 10 m.)
+    KeyDef{.name = "ladder.capture_distance", .kind = Kind::Number, .range = between(0, 10),
            .help = "farthest apart two corners may be for a join [m]"},
     // A radian per 1 ms step at 1000 rad/s (extremes_test folds through the singular configuration so); at 1e4 the
     // first steps fail, and 1e300 made the first state non-finite.
@@ -470,7 +471,8 @@ void assign_value(toml::table& target, std::string_view leaf, std::string_view v
   const std::string text(trim(value));
   char* end = nullptr;
   const double x = text.empty() ? 0 : std::strtod(text.c_str(), &end);
-  if (end && *end == '\0' && std::isfinite(x) && text.find_first_of("xXnN") == std::string::npos) {
+  // (A decimal number past a double's range, 1e400, is read as inf: "must be finite (got inf)", not "a string".)
+  if (end && *end == '\0' && !std::isnan(x) && text.find_first_of("xXnNiI") == std::string::npos) {
     target.insert_or_assign(leaf, x);  // (ranges then say what is wrong with it, not "a string")
     return;
   }

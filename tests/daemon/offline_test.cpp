@@ -204,14 +204,19 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
   for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "--scene /no/such.toml: no such file\n"},
                         Case{"--offline" + scene + " --duration ten", "--duration"},
                         Case{"--offline" + scene, "--duration"},
+                        Case{"--offline" + scene + " --duration 1e-10",
+                             "--duration 1e-10 s is shorter than half a step (sim.dt = 0.001 s): no step would run"},
                         Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
                         Case{"--offline" + scene + " --duration 1 --set sim.dt=nan", "sim.dt"},
                         Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json", "cannot write"},
+                        Case{"--offline" + scene + " --duration 1 --events /dev/full",
+                             "writing /dev/full failed (is the disk full?)"},
                         Case{"--offline" + scene + " --duration 1 --record " + path("s.lcmlog"),
                              "--record is for the live server, not --offline"},
                         Case{scene + " --duration 1", "--duration is for --offline runs"},
                         Case{"--offline --duration 1 --scene " + std::string(LADDER_SOURCE_DIR) + "/config",
                              "/config: a folder, not a scene file"},
+                        Case{"--offline --duration 1 --scene /dev/null", "--scene /dev/null: not a regular file"},
                         Case{"--offline" + scene + " --duration 1 --frobnicate", "frobnicate"},
                         // Server mode: every check comes before DDS is touched.
                         Case{scene + " --rtf -1", "server.real_time_factor must be from 0"},
@@ -263,6 +268,8 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         Case{"[server]\nstats_rate = 1e-300\n", ":2:14: server.stats_rate must be from 0.01 to 100"},
                         Case{"[server]\nscenes_dir = \"no-such-folder\"\n",
                              ":2:14: server.scenes_dir must be a folder of scenes: '"},
+                        Case{"[server]\nscene = \"nothing-here\"\n",
+                             ":2:9: server.scene nothing-here: no such file, and no scene of that name in "},
                         Case{"[server\n", ":1:8: "}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
     const Result r = ladderd("--config " + path("ladderd.toml"));
@@ -277,6 +284,12 @@ TEST_F(Offline, ShippedConfigIsValid) {
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.output.find("ladderd.toml"), std::string::npos) << r.output;  // refused for --rtf, not the file
   EXPECT_NE(r.output.find("server.real_time_factor"), std::string::npos) << r.output;
+  // server.scene names a shipped scene as --scene does (it was taken as a file beside the configuration file).
+  std::ofstream(path("named.toml")) << "[server]\nscene = \"double-ripple\"\n";
+  const Result named = ladderd("--config " + path("named.toml") + " --rtf -1");
+  EXPECT_EQ(named.code, 2);
+  EXPECT_EQ(named.output.find("server.scene"), std::string::npos) << named.output;
+  EXPECT_NE(named.output.find("server.real_time_factor"), std::string::npos) << named.output;
 }
 
 // A physics rate below the default 60 states a second lowers the publish rate to it when that is not given (before,
@@ -312,6 +325,24 @@ TEST_F(Offline, APhysicsRateBelowSixtyHertzPublishesAtIt) {
                           "against 30 ticks a second) (given as --rate 30 and --publish-rate 60)"),
             std::string::npos)
       << r.output;
+}
+
+// A session log that cannot be written (a full disk: /dev/full) is said to be incomplete when the server stops, even
+// in a session with no command (whose log was never synced, and was said to be "closed").
+TEST_F(Offline, ASessionLogThatCouldNotBeWrittenIsSaidToBeIncomplete) {
+  const std::string domain = std::to_string(1 + (getpid() + 7) % 230);
+  ladder::test::Process server({kLadderd, "--record", "/dev/full", "--domain", domain, "--sim-id",
+                                "full-" + std::to_string(getpid())},
+                               path("server.log"));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (server.log().find("serving") == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // states written meanwhile
+  server.signal(SIGTERM);
+  ASSERT_TRUE(server.wait_exit(std::chrono::seconds(20)).has_value()) << server.log();
+  EXPECT_NE(server.log().find("the session log /dev/full is incomplete: writing to it failed"), std::string::npos)
+      << server.log();
+  EXPECT_EQ(server.log().find("session log /dev/full closed"), std::string::npos) << server.log();
 }
 
 TEST_F(Offline, KeysListsEverySceneKey) {

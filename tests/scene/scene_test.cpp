@@ -160,7 +160,10 @@ TEST(Values, DepthIsReadCheckedAndPublishedWithTheSettings) {
   const Scene s = parse_scene("[ladder]\ndepth = 0.03\n", "<string>");
   EXPECT_EQ(s.depth, 0.03);
   EXPECT_NE(live_settings(s).find("\nladder.depth=0.03\n"), std::string::npos) << live_settings(s);
-  expect_error("[ladder]\ndepth = 0\n", "<string>:2:9: ", {"ladder.depth must be > 0 (got 0)"});
+  expect_error("[ladder]\ndepth = 0\n", "<string>:2:9: ", {"ladder.depth must be > 0 and <= 10 (got 0)"});
+  expect_error("[ladder]\ndepth = 1e308\n", "<string>:2:9: ", {"ladder.depth must be > 0 and <= 10 (got 1e+308)"});
+  expect_error("[ladder]\ncapture_distance = 1e300\n", "<string>:2:20: ",
+               {"ladder.capture_distance must be >= 0 and <= 10 (got 1e+300)"});
 }
 
 TEST(Values, EveryKeyIsRead) {
@@ -546,6 +549,7 @@ TEST(Overrides, AreValidatedLikeFileValues) {
             "--set damping.linear=99999999999999999999: damping.linear must be >= 0 and <= 1000 (got 1e+20)");
   EXPECT_EQ(error_of("", {"ladder.blocks=99999999999999999999"}),
             "--set ladder.blocks=99999999999999999999: ladder.blocks must be >= 1 and <= 1000000 (got 1e+20)");
+  EXPECT_EQ(error_of("", {"damping.linear=1e400"}), "--set damping.linear=1e400: damping.linear must be finite (got inf)");
   EXPECT_EQ(error_of("", {"ladder.blocks=6.0"}), "--set ladder.blocks=6.0: ladder.blocks must be an integer, not a floating-point number");
   EXPECT_EQ(error_of("", {"ladder.blocks=0"}), "--set ladder.blocks=0: ladder.blocks must be >= 1 and <= 1000000 (got 0)");
   EXPECT_EQ(error_of("", {"ladder.length=nan"}), "--set ladder.length=nan: ladder.length must be finite (got nan)");
