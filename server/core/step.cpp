@@ -277,9 +277,9 @@ double World::difference(const std::vector<BodyState>& other) const {
 // the halves' state, the more accurate of the two, and the next trial is scaled by 0.9 (tol / err)^(1 / (p + 1)),
 // at most 2x up and 5x down (10x after a failure). A non-finite trial or a failed hinge solve counts as an error
 // beyond any tolerance (one that stopped short of the hinge tolerance but within the error tolerance does not).
-// Sub-steps never go below h / 1024 (or the floor a caller set, set_adaptive_floor()): one that still misses the tolerance there is accepted (error_estimate and
-// converged say so, and the step goes on to its end) unless it made a non-finite state, which is left for the
-// caller's watchdog to undo.
+// Sub-steps never go below h / 1024 (or the floor a caller set, set_adaptive_floor()): one that still misses the
+// tolerance there is accepted (error_estimate and converged say so, and the step goes on to its end) unless it made a
+// non-finite state, which is left for the caller's watchdog to undo.
 // A trial costs three steps; the trial size is remembered from call to call (and in snapshots).
 void World::step_adaptive(double h) {
   const double t_end = t_ + h, h_min = adaptive_floor_ > 0 ? std::min(adaptive_floor_, h) : h / 1024;

@@ -147,8 +147,9 @@ void check_config(const DaemonConfig& c) {
                       "server.publish_rate");
   // (Below 0.01 Hz the next Stats would be hours away: 1e-300 Hz published none, as the publish rate once did.)
   if (!(s.stats_rate >= kMinStatsRate && s.stats_rate <= 100))
-    throw ConfigError("server.stats_rate must be from " + scene::format_number(kMinStatsRate) + " to 100 Stats a second",
-                      "server.stats_rate");
+    throw ConfigError(
+        "server.stats_rate must be from " + scene::format_number(kMinStatsRate) + " to 100 Stats a second",
+        "server.stats_rate");
   const double rtf = s.rates.real_time_factor;
   if (!(rtf == 0 || (rtf >= kMinRealTimeFactor && rtf <= kMaxRealTimeFactor)))
     throw ConfigError("server.real_time_factor must be from 0.01 to 1000, or 0 (as fast as possible)",

@@ -213,7 +213,6 @@ bool contains_word(std::string_view list, std::string_view word) {
 // ---------------------------------------------------------------------------------------------------------------
 // Messages
 
-
 std::string describe(const Range& r) {
   std::string lo, hi;
   if (std::isfinite(r.lo)) lo = (r.lo_open ? "> " : ">= ") + format_number(r.lo);
