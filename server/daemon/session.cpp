@@ -77,6 +77,8 @@ void check_angle(const std::optional<double>& v) {
 
 // The server's limits on an action, checked before the ladder sees it, in the order a reason is given when
 // several are broken. The block must exist before a point is measured from it: the ladder's check comes first.
+// Whether a poke's or push's point lies on its block is the ladder's own check (Ladder::poke, Ladder::push), the
+// same for a client's command and a scene's timeline; a grab's is made here.
 struct Check {
   const Limits& limits;
   const model::Ladder& l;
@@ -86,9 +88,6 @@ struct Check {
     l.check_block(p.block);
     if (p.at) {
       within_reach(*p.at, "the point", limits.reach);  // (finite; and 1e308 away, its offset from the block is not)
-      l.check_on_block(p.block,
-                       core::Rot::of(l.block_angle(p.block)).apply_inverse(*p.at - l.block_centre(p.block)),
-                       "the point");
     }
   }
   void operator()(const model::Push& p) const {
@@ -99,7 +98,6 @@ struct Check {
       throw std::invalid_argument("the duration must be > 0 and at most " + number(limits.max_duration) +
                                   " s (commands.max_duration), not " + number(p.duration));
     l.check_block(p.block);
-    l.check_on_block(p.block, p.at, "the point");
   }
   void operator()(const model::Grab& g) const {
     finite(g.local, "the point");

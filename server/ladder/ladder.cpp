@@ -966,10 +966,10 @@ double Ladder::poke(int block, const std::optional<Vec2>& point, const Vec2& imp
 void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double duration) {
   check_block(block);
   if (!(duration > 0) || !std::isfinite(duration)) throw std::invalid_argument("push: the duration must be positive");
+  check_on_block(block, local_point, "the point");
   // The held block itself: a force on it does nothing. (A block locked to it is pushed: the force moves no block,
   // but it weighs in the lock's moments, and can open it: Stop.PairPressedFaceToFaceLocksAndOpensAboutTheEndPulled.)
   if (world_.is_kinematic(block)) throw std::invalid_argument("push: the block is held and does not move freely");
-  check_on_block(block, local_point, "the point");
   world_.add_force(block, local_point, force, time() + duration);
 }
 
