@@ -230,8 +230,7 @@ void load_config(const std::string& path, DaemonConfig& config) {
       }
     }
   }
-  // A physics rate below the default publish rate lowers it, when the file gives none (as --rate does).
-  if (!c.publish_rate_given) c.server.rates.publish = std::min(Rates{}.publish, c.server.rates.physics);
+  c.default_publish_rate();  // the file's physics rate may be below it
   try {
     check_config(c);
   } catch (const ConfigError& e) {

@@ -4,6 +4,7 @@
 #include "daemon/limits.hpp"
 #include "transport/security.hpp"
 
+#include <algorithm>
 #include <cstddef>
 #include <stdexcept>
 #include <string>
@@ -54,6 +55,10 @@ struct DaemonConfig {
   // Whether server.publish_rate was named (in the file or on the command line). When it was not, the default of 60
   // states a second is lowered to the physics rate if that is lower (`ladderd --rate 30` publishes 30 a second).
   bool publish_rate_given = false;
+  // That rule, applied after the file and after the command line, each of which may set the physics rate.
+  void default_publish_rate() {
+    if (!publish_rate_given) server.rates.publish = std::min(Rates{}.publish, server.rates.physics);
+  }
 };
 
 class ConfigError : public std::runtime_error {

@@ -96,7 +96,7 @@ int main(int argc, char** argv) {
       c.server.rates.publish = cli.server.rates.publish;
       c.publish_rate_given = true;
     }
-    if (!c.publish_rate_given) c.server.rates.publish = std::min(daemon::Rates{}.publish, c.server.rates.physics);
+    c.default_publish_rate();
     if (rtf->count()) c.server.rates.real_time_factor = cli.server.rates.real_time_factor;
     if (realtime->count()) c.server.realtime_priority = cli.server.realtime_priority;
     if (spin->count()) c.server.spin_us = cli.server.spin_us;
