@@ -456,18 +456,26 @@ std::string_view trim(std::string_view s) {
   return s.substr(b, s.find_last_not_of(" \t") - b + 1);
 }
 
-// VALUE as TOML, or as a bare string when it is not valid TOML (so `sim.integrator=rk4` needs no quotes).
+// VALUE as TOML, or as a bare string when it is not valid TOML (so `sim.integrator=rk4` needs no quotes). An array
+// or inline table that is not valid TOML is an error (what TOML found wrong, and its column in VALUE), not a string.
 void assign_value(toml::table& target, std::string_view leaf, std::string_view value) {
+  constexpr std::string_view kPrefix = "v = ";
+  const std::string text(trim(value));
   try {
-    toml::table parsed = toml::parse("v = " + std::string(value));
+    toml::table parsed = toml::parse(std::string(kPrefix) + std::string(value));
     if (parsed.size() == 1 && parsed.contains("v")) {
       parsed.get("v")->visit([&](auto&& node) { target.insert_or_assign(leaf, std::move(node)); });
       return;
     }
-  } catch (const toml::parse_error&) {
-    // not TOML: a number TOML cannot hold (an integer past 2^63), else a bare string
+  } catch (const toml::parse_error& e) {
+    // not TOML: a number TOML cannot hold (an integer past 2^63), else a bare string; but not an array or a table
+    if (text.starts_with('[') || text.starts_with('{')) {
+      const auto column = static_cast<long>(e.source().begin.column) - static_cast<long>(kPrefix.size());
+      throw SceneError(std::string(text.starts_with('[') ? "not a valid TOML array" : "not a valid TOML table") +
+                       (column >= 1 ? " (near character " + std::to_string(column) + ")" : std::string()) + ": " +
+                       std::string(e.description()));
+    }
   }
-  const std::string text(trim(value));
   char* end = nullptr;
   const double x = text.empty() ? 0 : std::strtod(text.c_str(), &end);
   // (A decimal number past a double's range, 1e400, is read as inf: "must be finite (got inf)", not "a string".)
@@ -489,7 +497,11 @@ Origins apply_overrides(toml::table& root, const std::vector<std::string>& overr
     if (!def || table_of(key) == "timeline") fail(unknown("key", key, settable_key_names()));
     const std::string table(table_of(key));
     if (!root.contains(table)) root.insert_or_assign(table, toml::table{});
-    assign_value(*root.get_as<toml::table>(table), leaf_of(key), std::string_view(text).substr(eq + 1));
+    try {
+      assign_value(*root.get_as<toml::table>(table), leaf_of(key), std::string_view(text).substr(eq + 1));
+    } catch (const SceneError& e) {
+      fail(std::string(key) + ": " + e.what());
+    }
     origins.insert_or_assign(std::string(key), text);  // the last override of a key wins
   }
   return origins;

@@ -45,7 +45,8 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Each override is "table.key=value"; value is read as a TOML value, or as a bare string when it is not one.
+// Each override is "table.key=value"; value is read as a TOML value, or as a bare string when it is not one (but an
+// array or table that is not valid TOML is an error).
 // The scene keeps the text and the overrides it was made from.
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 Scene parse_scene(std::string_view toml_text, const std::string& source_name,

@@ -553,8 +553,15 @@ TEST(Overrides, AreValidatedLikeFileValues) {
   EXPECT_EQ(error_of("", {"ladder.blocks=6.0"}), "--set ladder.blocks=6.0: ladder.blocks must be an integer, not a floating-point number");
   EXPECT_EQ(error_of("", {"ladder.blocks=0"}), "--set ladder.blocks=0: ladder.blocks must be >= 1 and <= 1000000 (got 0)");
   EXPECT_EQ(error_of("", {"ladder.length=nan"}), "--set ladder.length=nan: ladder.length must be finite (got nan)");
+  // An array that is not TOML is named as such, with TOML's reason and where in the value it is, not "a string".
   EXPECT_EQ(error_of("", {"sim.gravity=[0, x]"}),
-            "--set sim.gravity=[0, x]: sim.gravity must be an array of 2 numbers, not a string");
+            "--set sim.gravity=[0, x]: sim.gravity: not a valid TOML array (near character 5): Error while parsing "
+            "value: could not determine value type");
+  EXPECT_EQ(error_of("", {"sim.gravity=[1e400, 0]"}),
+            "--set sim.gravity=[1e400, 0]: sim.gravity: not a valid TOML array (near character 7): Error while parsing "
+            "floating-point: '1e400' could not be interpreted as a value");
+  EXPECT_EQ(error_of("", {"sim.gravity={x = 1}"}), "--set sim.gravity={x = 1}: sim.gravity must be an array of 2 "
+                                                     "numbers, not a table");
   expect_error("", "--set sim.integrator=rk5: ", {"unknown integrator 'rk5'"}, {"sim.integrator=rk5"});
 }
 
