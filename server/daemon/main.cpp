@@ -32,7 +32,7 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--scene", o.scene,
                  "scene file (TOML), or the name of one in the scenes folder (e.g. double-ripple); default: the "
-                 "built-in classic toy at rest");
+                 "built-in classic toy at rest (required with --offline)");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
   auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-231)")
                      ->check(transport::domain_check())
