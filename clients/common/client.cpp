@@ -5,11 +5,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace ladder::client {
 
 using transport::copy_text;
+using transport::printable;
 using transport::text_of;
 using Clock = std::chrono::steady_clock;
 
@@ -140,6 +142,19 @@ T if_topic(const transport::Entity& participant, const transport::Entity& topic,
   return topic ? T(participant, topic, p) : T();
 }
 
+// The scene's settings, one KEY=VALUE a line: each line made printable (transport::printable), the lines kept.
+std::string printable_lines(std::string_view text) {
+  std::string out;
+  for (std::size_t from = 0; from <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', from), text.size());
+    out += printable(text.substr(from, end - from));
+    if (end < text.size()) out += '\n';
+    from = end + 1;
+  }
+  return out;
+}
+
+constexpr std::uint32_t kMaxBlocks = 1'000'000;  // the most blocks a scene may have (docs/scenes.md)
 constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096, kMaxCandidates = 8;
 
 }  // namespace
@@ -185,9 +200,12 @@ bool Client::from_server(const transport::Entity& reader, dds_instance_handle_t 
 void Client::take_states() {
   state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
-    // One pose (three numbers) and one hinge per block; a state whose sequences disagree is not drawable.
+    // One pose (three numbers) and one hinge per block, every pose finite, at most one grip a block: a state that is
+    // not so was not written by a ladderd (which never publishes a non-finite number) and is not drawable.
     const std::size_t n = s.hinge_corner._length;
-    if (s.poses._length != 3 * n || s.hinge_status._length != n || s.hinge_flips._length != n) {
+    if (s.poses._length != 3 * n || s.hinge_status._length != n || s.hinge_flips._length != n ||
+        s.grips._length > n || !std::all_of(s.poses._buffer, s.poses._buffer + s.poses._length,
+                                            [](double v) { return std::isfinite(v); })) {
       ++states_malformed_;
       return;
     }
@@ -259,7 +277,8 @@ void Client::poll() {
         ++forged_;
         return;
       }
-      acks_[a.command_id] = {a.command_id, a.accepted, text_of(a.reason), a.sim_time, a.step, a.command_seq};
+      acks_[a.command_id] = {a.command_id, a.accepted, printable(text_of(a.reason)), a.sim_time, a.step,
+                             a.command_seq};
       ++acks_received_;
     });
   }
@@ -272,12 +291,18 @@ void Client::poll() {
     if (!scenes_.count(*who) && scenes_.size() >= kMaxScenes) scenes_.erase(scenes_.begin());
     SceneInfo& si = scenes_[*who];
     si.generation = s.generation;
-    si.scene_name = text_of(s.scene_name);
-    si.description = text_of(s.description);
-    si.server_version = text_of(s.server_version);
+    si.scene_name = printable(text_of(s.scene_name));
+    si.description = printable(text_of(s.description));
+    si.server_version = printable(text_of(s.server_version));
     si.replay = s.replay;
-    si.top = text_of(s.top);
-    si.options = text_of(s.options);
+    si.top = printable(text_of(s.top));
+    si.options = printable_lines(text_of(s.options));
+    // The masses only as a ladderd sends them, one a block and no more blocks than a scene may have: a peer's
+    // sequence is as long as it likes, and a copy of it is kept for each of kMaxScenes participants.
+    if (s.masses._length == s.blocks && s.blocks <= kMaxBlocks)
+      si.masses.assign(s.masses._buffer, s.masses._buffer + s.masses._length);
+    else
+      si.masses.clear();
     si.blocks = s.blocks;
     si.length = s.length;
     si.thickness = s.thickness;
@@ -286,12 +311,11 @@ void Client::poll() {
     si.physics_rate = s.physics_rate;
     si.publish_rate = s.publish_rate;
     si.real_time_factor = s.real_time_factor;
-    si.masses.assign(s.masses._buffer, s.masses._buffer + s.masses._length);
     if (ours) scene_ = si;
   });
   event_r_.take([&](const ladder_msg_Event& e, const dds_sample_info_t& info) {
     if (text_of(e.sim_id) != sim_id_) return;
-    Event ev{e.seq, e.t, text_of(e.kind), e.hinge, e.energy_removed, text_of(e.detail)};
+    Event ev{e.seq, e.t, printable(text_of(e.kind)), e.hinge, e.energy_removed, printable(text_of(e.detail))};
     if (!server_) {  // the event reader can match the server before its first State comes: kept for then
       const auto who = owner(event_r_.entity(), info.publication_handle);
       if (who && early_events_.size() < kMaxEarlyEvents) early_events_.emplace_back(*who, std::move(ev));

@@ -68,7 +68,7 @@ struct SceneInfo {
   std::uint32_t blocks = 0;
   double length = 0, thickness = 0, hinge_inset = 0, dt = 0;
   double physics_rate = 0, publish_rate = 0, real_time_factor = 0;
-  std::vector<double> masses;
+  std::vector<double> masses;  // one a block, or none (a peer's that are not: client.cpp, poll)
 };
 
 // Command builders: each fills the fields its kind uses.
@@ -142,7 +142,8 @@ class Client {
   const std::optional<ladder_msg_Stats>& latest_stats() const { return stats_; }
   std::uint64_t stats_received() const { return stats_count_; }
   std::size_t acks_received() const { return acks_received_; }
-  // States dropped because their sequences disagree (not one pose and one hinge per block).
+  // States dropped as not a ladderd's: their sequences disagree (not one pose and one hinge per block), a pose is not
+  // a finite number, or there are more grips than blocks.
   std::uint64_t states_malformed() const { return states_malformed_; }
   const std::string& client_id() const { return client_id_; }
   // Samples (acks, states, scene infos, events, stats) ignored because their writer is not in the participant of

@@ -100,7 +100,9 @@ Directory discover(int domain, double seconds) {
   for (const auto& [id, l] : ladders) {
     servers.insert(l.participant);
     const auto h = seen.host.find(l.participant);
-    out.ladders.push_back({id, h == seen.host.end() ? "?" : h->second, l.scene, l.server_version, l.blocks, l.replay,
+    // (Every text from a peer, the sim id and the host included, made printable: transport::printable.)
+    out.ladders.push_back({transport::printable(id), h == seen.host.end() ? "?" : transport::printable(h->second),
+                           transport::printable(l.scene), transport::printable(l.server_version), l.blocks, l.replay,
                            l.rtf});
   }
   dds_guid_t own{};

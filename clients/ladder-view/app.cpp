@@ -37,6 +37,9 @@ const client::SceneInfo* Feed::info() const { return state() ? &*client_.scene_i
 std::string Feed::why_undrawable() const {
   const auto& s = client_.latest_state();
   const auto& i = client_.scene_info();
+  if (!s && client_.states_malformed() > 0)
+    return std::to_string(client_.states_malformed()) + " States came, none drawable (not a ladderd's: sequences of " +
+           "different lengths, a pose that is not a finite number, or more grips than blocks)";
   if (!s) return "no State has come";
   if (!i) return "no SceneInfo has come";
   return "the States are of scene generation " + std::to_string(s->generation) + " but the SceneInfo of generation " +

@@ -94,6 +94,7 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
   // Block numbers at the centres, where the whole number lands on a block (its faces, sides or tapes).
   for (std::size_t i = 0; i < state.blocks.size(); ++i) {
     const Point s = cam.to_screen({state.blocks[i].x, state.blocks[i].y});
+    if (!(s.x >= 0 && s.x < cols && s.y >= 0 && s.y < 2.0 * rows)) continue;  // (off the page, or not a number)
     const std::string label = std::to_string(i);
     const int y = static_cast<int>(s.y / 2), x0 = static_cast<int>(s.x) - static_cast<int>(label.size() - 1) / 2;
     if (y < 0 || y >= rows || x0 < 0 || x0 + static_cast<int>(label.size()) > cols) continue;

@@ -115,7 +115,13 @@ struct View {
       : cam(c), info(i), rot(c.yaw, c.pitch), depth(depth_of(i)),
         radius_px(0.5 * std::sqrt(i.length * i.length + i.thickness * i.thickness + depth * depth) * c.scale),
         length_px(i.length * c.scale), r(end_radius_of(i)),
-        segments(static_cast<int>(std::clamp(std::ceil(0.8 * std::sqrt(2 * r * c.scale)), 2.0, 24.0))) {}
+        segments(facets_for(r * c.scale)) {}
+
+  // Facets to a quarter arc of radius r_px pixels: 2 to 24 (2 for a radius that is not a number).
+  static int facets_for(double r_px) {
+    const double f = std::ceil(0.8 * std::sqrt(2 * r_px));
+    return f >= 2 ? (f <= 24 ? static_cast<int>(f) : 24) : 2;
+  }
 
   bool visible(const client::Pose& p) const {
     const Point s = cam.to_screen({p.x, p.y});
@@ -355,22 +361,28 @@ void draw_hinges(cairo_t* cr, const View& v, const client::State& s, const std::
   }
 }
 
-// A user's hand: a ring at the grip's target and a dashed line to the block it holds.
+// A user's hand: a ring at the grip's target and a dashed line to the block it holds, each drawn where it is in the
+// image (a target kilometres away would otherwise be a dashed line of millions of pixels).
 void draw_grips(cairo_t* cr, const View& v, const client::State& s) {
+  constexpr double kRing = 6;
   for (const ladder_msg_Grip& g : s.grips) {
     if (g.block < 0 || static_cast<std::size_t>(g.block) >= s.blocks.size()) continue;
     const Point t = v.cam.to_screen({g.target_x, g.target_y});
-    const Point b = v.cam.to_screen({s.blocks[g.block].x, s.blocks[g.block].y});
+    Point from = v.cam.to_screen({s.blocks[g.block].x, s.blocks[g.block].y}), to = t;
     set_colour(cr, kGrip);
     cairo_set_line_width(cr, 2);
-    const double dash[] = {4, 3};
-    cairo_set_dash(cr, dash, 2, 0);
-    cairo_move_to(cr, b.x, b.y);
-    cairo_line_to(cr, t.x, t.y);
-    cairo_stroke(cr);
-    cairo_set_dash(cr, nullptr, 0, 0);
-    cairo_arc(cr, t.x, t.y, 6, 0, 2 * M_PI);
-    cairo_stroke(cr);
+    if (clip_to_image(v.cam, kRing, from, to)) {
+      const double dash[] = {4, 3};
+      cairo_set_dash(cr, dash, 2, 0);
+      cairo_move_to(cr, from.x, from.y);
+      cairo_line_to(cr, to.x, to.y);
+      cairo_stroke(cr);
+      cairo_set_dash(cr, nullptr, 0, 0);
+    }
+    if (t.x > -kRing && t.x < v.cam.width + kRing && t.y > -kRing && t.y < v.cam.height + kRing) {
+      cairo_arc(cr, t.x, t.y, kRing, 0, 2 * M_PI);
+      cairo_stroke(cr);
+    }
   }
 }
 
@@ -664,6 +676,12 @@ Camera fit(const client::SceneInfo& info, const client::State& state, int width,
   const Point w = on_plane(v.rot, 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y));
   cam.cx = w.x;
   cam.cy = w.y;
+  // Blocks spread beyond what a double spans (1e308 m apart: a peer's state, not a ladder) leave the bounds infinite:
+  // then a view of the origin at a block's size, rather than a scale of 0 or NaN.
+  if (!(std::isfinite(cam.scale) && cam.scale > 0 && std::isfinite(cam.cx) && std::isfinite(cam.cy))) {
+    cam.scale = std::isfinite(info.length) && info.length > 0 ? 0.2 * std::min(width, height) / info.length : 1;
+    cam.cx = cam.cy = 0;
+  }
   return cam;
 }
 
@@ -751,6 +769,25 @@ std::string write_png(cairo_surface_t* surface, const std::string& path) {
   std::remove(path.c_str());  // no half-written picture left behind
   return st == CAIRO_STATUS_WRITE_ERROR || !closed ? std::string(std::strerror(why ? why : EIO))
                                                    : std::string(cairo_status_to_string(st));
+}
+
+bool clip_to_image(const Camera& cam, double margin, Point& a, Point& b) {
+  double t0 = 0, t1 = 1;
+  const double dx = b.x - a.x, dy = b.y - a.y;
+  const auto edge = [&](double p, double q) {  // inside where p t <= q
+    if (p == 0) return q >= 0;
+    const double t = q / p;
+    if (p < 0) t0 = std::max(t0, t);
+    else t1 = std::min(t1, t);
+    return t0 <= t1;
+  };
+  if (!(edge(-dx, a.x + margin) && edge(dx, cam.width + margin - a.x) && edge(-dy, a.y + margin) &&
+        edge(dy, cam.height + margin - a.y)))
+    return false;
+  const Point from = a;
+  a = {from.x + t0 * dx, from.y + t0 * dy};
+  b = {from.x + t1 * dx, from.y + t1 * dy};
+  return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(b.x) && std::isfinite(b.y);
 }
 
 }  // namespace ladder::view

@@ -68,6 +68,10 @@ struct Camera {
 // the viewer at rest. [rad]
 inline constexpr double kDefaultYaw = -0.87, kDefaultPitch = 0.21;  // -50 deg, 12 deg
 
+// The part of the segment a-b (screen points) inside the image and a margin of that many pixels around it, found
+// by Liang-Barsky: a and b are moved to its ends. False when no part of it is there, or a point is not a number.
+bool clip_to_image(const Camera& cam, double margin, Point& a, Point& b);
+
 // Frames the ladder: the top `max_blocks` blocks (all of a short ladder) with a margin, whole blocks at least, seen
 // with the given yaw and pitch.
 Camera fit(const client::SceneInfo& info, const client::State& state, int width, int height, int max_blocks = 40,

@@ -57,9 +57,11 @@ void History::add(std::uint32_t generation, double t, double energy, const std::
   last_t_ = t;
   if (!std::isfinite(energy)) return;
   energy_.push_back({t, energy});
+  // One mark per hinge that flipped since the last state, however many times: its marks would all be the same point
+  // (and a count that jumps by 4e9, from a forged or a restarted publisher, must not become 4e9 points).
   if (last_.size() == flips.size())
     for (std::size_t k = 1; k < flips.size(); ++k)
-      for (std::uint32_t n = last_[k]; n < flips[k]; ++n) flips_.push_back({t, static_cast<double>(k)});
+      if (flips[k] > last_[k]) flips_.push_back({t, static_cast<double>(k)});
   last_ = flips;
   hinges_ = static_cast<int>(flips.size()) - 1;
   if (energy_.size() > kMaxPoints) halve(energy_);

@@ -23,6 +23,7 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <type_traits>
 
 #include <unistd.h>
 
@@ -160,11 +161,51 @@ std::string hinge_text(const client::Hinge& h) {
   return h.status == ladder_msg_BROKEN ? "broken" : h.status == ladder_msg_LOCKED ? "locked" : "hinged";
 }
 
+// One JSON object, field by field: a number that is not finite is null (JSON has no NaN), a text is escaped.
+class Json {
+ public:
+  Json& raw(const char* key, const std::string& value) {
+    out_ += (out_.size() > 1 ? ",\"" : "\"") + std::string(key) + "\":" + value;
+    return *this;
+  }
+  Json& field(const char* key, double v, const char* format = "%.9g") {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, format, v);
+    return raw(key, std::isfinite(v) ? buf : "null");
+  }
+  template <class I, std::enable_if_t<std::is_integral_v<I>, int> = 0>
+  Json& field(const char* key, I v) {
+    return raw(key, std::to_string(v));
+  }
+  Json& field(const char* key, const std::string& text) {
+    std::string q = "\"";
+    for (const char ch : text) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c == '"' || c == '\\') {
+        q += '\\';
+        q += ch;
+      } else if (c < 0x20) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "\\u%04x", c);
+        q += buf;
+      } else {
+        q += ch;
+      }
+    }
+    return raw(key, q + "\"");
+  }
+  std::string done() const { return out_ + "}"; }
+
+ private:
+  std::string out_ = "{";
+};
+
 void print_event(const client::Event& e, bool json) {
   if (json) {
-    std::printf("{\"seq\":%llu,\"t\":%.9g,\"kind\":\"%s\",\"hinge\":%d,\"energy_removed\":%.9g,\"detail\":\"%s\"}\n",
-                static_cast<unsigned long long>(e.seq), e.t, e.kind.c_str(), e.hinge, e.energy_removed,
-                e.detail.c_str());
+    Json j;
+    j.field("seq", e.seq).field("t", e.t).field("kind", e.kind).field("hinge", e.hinge);
+    j.field("energy_removed", e.energy_removed).field("detail", e.detail);
+    std::printf("%s\n", j.done().c_str());
   } else {
     std::printf("t = %9.4f s  %-15s hinge %-3d energy removed %.3g J%s%s\n", e.t, e.kind.c_str(), e.hinge,
                 e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
@@ -173,25 +214,19 @@ void print_event(const client::Event& e, bool json) {
 
 void print_stats(const ladder_msg_Stats& s, bool json) {
   if (json) {
-    std::printf("{\"sim_time\":%.9g,\"steps\":%llu,\"real_time_factor\":%.4g,\"step_p50_us\":%.4g,"
-                "\"step_p99_us\":%.4g,\"step_max_us\":%.4g,\"late_p50_us\":%.4g,\"late_p99_us\":%.4g,"
-                "\"late_max_us\":%.4g,\"missed_deadlines\":%llu,\"solver_iterations\":%u,\"solver_residual\":%.3g,"
-                "\"energy\":%.9g,\"max_hinge_error\":%.3g,\"commands_received\":%llu,\"commands_accepted\":%llu,"
-                "\"commands_refused\":%llu,\"commands_rate_limited\":%llu,\"commands_unanswered\":%llu,"
-                "\"commands_duplicate\":%llu,\"commands_undecodable\":%llu,\"write_failures\":%llu,"
-                "\"states_published\":%llu}\n",
-                s.sim_time, static_cast<unsigned long long>(s.steps), s.real_time_factor, s.step_p50_us,
-                s.step_p99_us, s.step_max_us, s.late_p50_us, s.late_p99_us, s.late_max_us,
-                static_cast<unsigned long long>(s.missed_deadlines), s.solver_iterations, s.solver_residual, s.energy,
-                s.max_hinge_error, static_cast<unsigned long long>(s.commands_received),
-                static_cast<unsigned long long>(s.commands_accepted),
-                static_cast<unsigned long long>(s.commands_refused),
-                static_cast<unsigned long long>(s.commands_rate_limited),
-                static_cast<unsigned long long>(s.commands_unanswered),
-                static_cast<unsigned long long>(s.commands_duplicate),
-                static_cast<unsigned long long>(s.commands_undecodable),
-                static_cast<unsigned long long>(s.write_failures),
-                static_cast<unsigned long long>(s.states_published));
+    Json j;
+    j.field("sim_time", s.sim_time).field("steps", s.steps).field("real_time_factor", s.real_time_factor, "%.4g");
+    j.field("step_p50_us", s.step_p50_us, "%.4g").field("step_p99_us", s.step_p99_us, "%.4g");
+    j.field("step_max_us", s.step_max_us, "%.4g").field("late_p50_us", s.late_p50_us, "%.4g");
+    j.field("late_p99_us", s.late_p99_us, "%.4g").field("late_max_us", s.late_max_us, "%.4g");
+    j.field("missed_deadlines", s.missed_deadlines).field("solver_iterations", s.solver_iterations);
+    j.field("solver_residual", s.solver_residual, "%.3g").field("energy", s.energy);
+    j.field("max_hinge_error", s.max_hinge_error, "%.3g").field("commands_received", s.commands_received);
+    j.field("commands_accepted", s.commands_accepted).field("commands_refused", s.commands_refused);
+    j.field("commands_rate_limited", s.commands_rate_limited).field("commands_unanswered", s.commands_unanswered);
+    j.field("commands_duplicate", s.commands_duplicate).field("commands_undecodable", s.commands_undecodable);
+    j.field("write_failures", s.write_failures).field("states_published", s.states_published);
+    std::printf("%s\n", j.done().c_str());
   } else {
     std::printf("t = %.3f s  real-time factor %.3f  step p50 %.1f us p99 %.1f us  tick late p99 %.0f us  missed %llu"
                 "  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited, %llu "
@@ -215,10 +250,10 @@ void print_state(const client::State& s, bool json) {
     }
     for (const auto& h : s.hinges)
       hinges += (hinges.empty() ? "\"" : ",\"") + hinge_text(h) + "\"";
-    std::printf("{\"seq\":%llu,\"step\":%llu,\"t\":%.9g,\"paused\":%s,\"energy\":%.9g,\"blocks\":[%s],"
-                "\"hinges\":[%s]}\n",
-                static_cast<unsigned long long>(s.seq), static_cast<unsigned long long>(s.step), s.sim_time,
-                s.paused ? "true" : "false", s.energy, blocks.c_str(), hinges.c_str());
+    Json j;  // (the poses are finite: the client takes no State with a pose that is not)
+    j.field("seq", s.seq).field("step", s.step).field("t", s.sim_time).raw("paused", s.paused ? "true" : "false");
+    j.field("energy", s.energy).raw("blocks", "[" + blocks + "]").raw("hinges", "[" + hinges + "]");
+    std::printf("%s\n", j.done().c_str());
     return;
   }
   std::string flips;

@@ -245,23 +245,52 @@ std::string text_of(const char (&src)[N]) {
   return std::string(src, n);
 }
 
-// Text from a peer made safe for a log line: each control character (a newline would start a forged line) written
-// as \xNN, and a backslash as \\ so that the escape cannot be forged either.
+// Text from a peer made safe for a log line or a terminal: each control character (a newline would start a forged
+// line, an escape sequence would drive the terminal), the C1 controls U+0080 to U+009F and every byte that is not
+// part of valid UTF-8 written as \xNN, and a backslash as \\ so that the escape cannot be forged either. What comes
+// out is valid UTF-8 (cairo, which draws the viewer's text, needs that: invalid text left its context in an error
+// state and the window stopped drawing).
 inline std::string printable(std::string_view text) {
   std::string out;
   out.reserve(text.size());
-  for (const char ch : text) {
-    const auto c = static_cast<unsigned char>(ch);
+  const auto escape = [&out](unsigned char c) {
+    constexpr char kHex[] = "0123456789abcdef";
+    out += "\\x";
+    out += kHex[c >> 4];
+    out += kHex[c & 15];
+  };
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
     if (c == '\\') {
       out += "\\\\";
-    } else if (c < 0x20 || c == 0x7f) {
-      constexpr char kHex[] = "0123456789abcdef";
-      out += "\\x";
-      out += kHex[c >> 4];
-      out += kHex[c & 15];
-    } else {
-      out += ch;
+      ++i;
+      continue;
     }
+    if (c < 0x80) {
+      if (c < 0x20 || c == 0x7f) escape(c);
+      else out += static_cast<char>(c);
+      ++i;
+      continue;
+    }
+    // A multi-byte sequence: its length from the lead byte, each continuation byte 10xxxxxx, no overlong form, no
+    // surrogate, nothing past U+10FFFF.
+    const std::size_t len = c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3 : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
+    bool valid = len > 0 && i + len <= text.size();
+    std::uint32_t cp = len == 2 ? c & 0x1fu : len == 3 ? c & 0x0fu : c & 0x07u;
+    for (std::size_t k = 1; valid && k < len; ++k) {
+      const auto cc = static_cast<unsigned char>(text[i + k]);
+      valid = (cc & 0xc0) == 0x80;
+      cp = (cp << 6) | (cc & 0x3fu);
+    }
+    const bool overlong = (len == 3 && cp < 0x800) || (len == 4 && cp < 0x10000);
+    if (valid) valid = !overlong && !(cp >= 0xd800 && cp <= 0xdfff) && cp <= 0x10ffff && !(cp >= 0x80 && cp <= 0x9f);
+    if (!valid) {
+      escape(c);
+      ++i;
+      continue;
+    }
+    out.append(text.substr(i, len));
+    i += len;
   }
   return out;
 }

@@ -594,16 +594,49 @@ TEST(Draw, OnlyWhatIsOnScreenOfAHundredThousandBlocks) {
 
 // The plots' history: a flip-flop where a hinge's count goes up, at that state's time; a reset starts again. The
 // picture has each flip-flop's dot and the energy's line where the axes put them.
+// A peer's state whose blocks lie beyond what a double spans (1e308 m either way): the view still has a finite,
+// positive scale (it was 0 or NaN, and the drawing cast NaN to int), and the terminal view draws it. A grip's line to
+// a target far off the image is clipped to the image (cairo took about 30 ms a grip to stroke a dashed line of
+// millions of pixels): what is inside it is kept, what is not is refused, and a point that is not a number too.
+TEST(Draw, NumbersBeyondADoublesSpanAndFarGripsStayDrawable) {
+  const client::SceneInfo info = classic_info(6);
+  client::State s = zigzag(6);
+  s.blocks[0] = {1e308, -1e308, 0};
+  s.blocks[5] = {-1e308, 1e308, 0};
+  const Camera cam = view::fit(info, s, 400, 600);
+  EXPECT_TRUE(std::isfinite(cam.scale) && cam.scale > 0) << cam.scale;
+  EXPECT_TRUE(std::isfinite(cam.cx) && std::isfinite(cam.cy)) << cam.cx << " " << cam.cy;
+  const std::string text = view::render_ascii(cam, info, s, 40, 20);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 20) << text;
+
+  Camera c;
+  c.width = 400;
+  c.height = 300;
+  Point a{200, 150}, b{200 + 1e9, 150};  // to the right, a billion pixels on
+  ASSERT_TRUE(view::clip_to_image(c, 6, a, b));
+  EXPECT_EQ(a.x, 200);
+  EXPECT_NEAR(b.x, 406, 1e-6);
+  EXPECT_NEAR(b.y, 150, 1e-6);
+  Point p{-1e9, -1e9}, q{-1e9, 1e9};  // wholly left of the image
+  EXPECT_FALSE(view::clip_to_image(c, 6, p, q));
+  Point u{-1e9, 150}, w{1e9, 150};  // across it
+  ASSERT_TRUE(view::clip_to_image(c, 6, u, w));
+  EXPECT_NEAR(u.x, -6, 1e-6);
+  EXPECT_NEAR(w.x, 406, 1e-6);
+  Point n{NAN, 0}, m{10, 10};
+  EXPECT_FALSE(view::clip_to_image(c, 6, n, m));
+}
+
 TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
   view::History h;
   h.add(1, 0.0, -1.0, {0, 0, 0});
   h.add(1, 1.0, -0.5, {0, 1, 0});
-  h.add(1, 2.0, -0.8, {0, 1, 2});  // hinge 2 twice in one state: two flip-flops
-  ASSERT_EQ(h.flips().size(), 3u);
+  h.add(1, 2.0, -0.8, {0, 1, 2});  // hinge 2 twice in one state: one dot (the two would be the same point)
+  ASSERT_EQ(h.flips().size(), 2u);
   EXPECT_EQ(h.flips()[0].x, 1.0);
   EXPECT_EQ(h.flips()[0].y, 1.0);
-  EXPECT_EQ(h.flips()[2].x, 2.0);
-  EXPECT_EQ(h.flips()[2].y, 2.0);
+  EXPECT_EQ(h.flips()[1].x, 2.0);
+  EXPECT_EQ(h.flips()[1].y, 2.0);
   EXPECT_EQ(h.energy().size(), 3u);
   EXPECT_EQ(h.hinges(), 2);
   const std::string path = kBin + "/tests/Plot.png";
@@ -614,6 +647,13 @@ TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
   EXPECT_EQ(distance(img.at(axes[0].at(2.0, 2.0)), view::kFlipDot), 0);
   EXPECT_NE(distance(img.at(axes[0].at(1.0, 2.0)), view::kFlipDot), 0);  // no flip-flop of hinge 2 at t = 1
   EXPECT_LT(distance(img.at(axes[1].at(1.0, -0.5)), view::kEnergyLine), 60);
+  // A count that jumps by 4e9 (a peer's State: ladder-view and ladderctl plot grew to gigabytes, a point a flip) is one
+  // dot too.
+  view::History big;
+  big.add(1, 0.0, -1.0, {0, 0, 0});
+  big.add(1, 0.1, -1.0, {0, 4'000'000'000u, 0});
+  big.add(1, 0.2, -1.0, {0, 0, 4'000'000'000u});
+  EXPECT_EQ(big.flips().size(), 2u);
   h.add(1, 0.5, -1.0, {0, 0, 0});  // back in time: a reset
   EXPECT_TRUE(h.flips().empty());
   EXPECT_EQ(h.energy().size(), 1u);
@@ -916,6 +956,60 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
   }
   stop = true;
   forger.join();
+}
+
+// With no ladderd on the domain, a peer publishing a State and a SceneInfo under a sim id is taken as its server
+// (without DDS Security, anyone can: docs/security.md). Its text comes out printable (an escape sequence, a newline
+// and bytes that are not UTF-8 escaped as \xNN: they reached the terminal and, in the window, left cairo unable to
+// draw), and a State with a pose that is not a finite number is not taken (the view cast NaN to int).
+TEST(ForgedPeer, TextIsMadePrintableAndAStateThatIsNotFiniteIsNotTaken) {
+  const std::string name = "ForgedPeer.TextIsMadePrintable";
+  const int domain = domain_for(name);
+  const std::string id = sim_id_for(name);
+  const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain));
+  const transport::Topics topics(participant);
+  const transport::Writer<ladder_msg_State> state_w(participant, topics.state, transport::Profile::State);
+  const transport::Writer<ladder_msg_SceneInfo> scene_w(participant, topics.scene_info, transport::Profile::SceneInfo);
+  ladder_msg_SceneInfo info{};
+  transport::copy_text(info.sim_id, id);
+  info.generation = 7;
+  transport::copy_text(info.scene_name, "\x1b[2Jevil\nforged \xff\xfe\xc3( caf\xc3\xa9 \xc2\x9b");
+  transport::copy_text(info.options, "sim.dt=0.001\nbad=\x1b]0;title\x07\n");
+  info.blocks = 2;
+  info.length = 0.064;
+  info.thickness = 0.013;
+  const std::vector<double> masses(100, 0.025);  // not one a block: not kept
+  transport::lend(info.masses, masses);
+  std::vector<double> poses{0, 0, 0, 0, -0.066, 0};
+  const std::vector<std::uint8_t> corner{0, 0};
+  const std::vector<ladder_msg_HingeStatus> status{ladder_msg_HINGED, ladder_msg_HINGED};
+  const std::vector<std::uint32_t> flips{0, 0};
+  ladder_msg_State st{};
+  transport::copy_text(st.sim_id, id);
+  st.generation = 7;
+  st.seq = 1;
+  transport::lend_blocks(st, poses, corner, status, flips);
+  scene_w.write(info);
+  state_w.write(st);
+
+  Client c(domain, id, "forged-peer-test");
+  ASSERT_TRUE(eventually([&] { return c.poll(), c.latest_state() && c.scene_info(); }, kStart));
+  EXPECT_EQ(c.scene_info()->scene_name, "\\x1b[2Jevil\\x0aforged \\xff\\xfe\\xc3( caf\xc3\xa9 \\xc2\\x9b");
+  EXPECT_EQ(c.scene_info()->options, "sim.dt=0.001\nbad=\\x1b]0;title\\x07\n");
+  EXPECT_TRUE(c.scene_info()->masses.empty());
+  EXPECT_EQ(c.latest_state()->seq, 1u);
+
+  poses[4] = NAN;
+  st.seq = 2;
+  transport::lend_blocks(st, poses, corner, status, flips);
+  state_w.write(st);
+  ASSERT_TRUE(eventually([&] { return c.poll(), c.states_malformed() > 0; }, kStart));
+  EXPECT_EQ(c.latest_state()->seq, 1u);  // the last finite one
+  poses[4] = -0.066;
+  st.seq = 3;
+  transport::lend_blocks(st, poses, corner, status, flips);
+  state_w.write(st);
+  EXPECT_TRUE(eventually([&] { return c.poll(), c.latest_state()->seq == 3; }, kStart));
 }
 
 // An X server of our own for the window; the screen is an XWD file we can read at any time.

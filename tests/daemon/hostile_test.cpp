@@ -5,6 +5,7 @@
 #include "naming.hpp"
 #include "client.hpp"
 #include "process.hpp"
+#include "transport/dds.hpp"
 
 #include <gtest/gtest.h>
 
@@ -268,12 +269,34 @@ TEST_F(Hostile, NoHostileCommandMakesTheServerPublishANonFiniteNumberOrStop) {
 
 // A client's text reaches the server's log escaped: a newline in a scene's name would otherwise start a line of the
 // client's making (here a forged "[error] step failed", which anyone grepping the log would take for the server's).
+// What the server logs of a peer's text and what the clients show of it (transport::printable): valid UTF-8 kept,
+// and every control character (C0, DEL, C1), every byte that is not valid UTF-8 (a stray continuation byte, a
+// truncated sequence, an overlong form, a surrogate, past U+10FFFF) and the backslash escaped, so that the result is
+// valid UTF-8 with no control character and cannot be confused with an escape.
+TEST(Printable, KeepsValidUtf8AndEscapesControlsAndEveryOtherByte) {
+  using transport::printable;
+  EXPECT_EQ(printable("plain text 1.5 m"), "plain text 1.5 m");
+  EXPECT_EQ(printable("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80"), "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");
+  EXPECT_EQ(printable("a\nb\x1b[2J\x7f"), "a\\x0ab\\x1b[2J\\x7f");
+  EXPECT_EQ(printable("back\\slash"), "back\\\\slash");
+  EXPECT_EQ(printable("\xc2\x9b"), "\\xc2\\x9b");                  // U+009B, a C1 control (CSI)
+  EXPECT_EQ(printable("\x80"), "\\x80");                          // a continuation byte alone
+  EXPECT_EQ(printable("\xe2\x82"), "\\xe2\\x82");                  // cut short
+  EXPECT_EQ(printable("\xc0\xaf"), "\\xc0\\xaf");                  // overlong '/'
+  EXPECT_EQ(printable("\xe0\x80\xaf"), "\\xe0\\x80\\xaf");          // overlong, three bytes
+  EXPECT_EQ(printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");          // a surrogate
+  EXPECT_EQ(printable("\xf4\x90\x80\x80"), "\\xf4\\x90\\x80\\x80");  // past U+10FFFF
+  EXPECT_EQ(printable("\xff\xfe\xc3("), "\\xff\\xfe\\xc3(");
+  EXPECT_EQ(printable(std::string("a\0b", 3)), "a\\x00b");
+}
+
 TEST_F(Hostile, AClientsTextCannotForgeALogLine) {
   start();
   const std::string forged = "2026-12-05 09:00:00.000 [error] step failed, simulation paused: FORGED";
   const client::Ack a = client_->call(cmd::load("x\n" + forged), kAnswer);
   EXPECT_FALSE(a.accepted);
-  EXPECT_EQ(a.reason.rfind("no scene 'x\n" + forged + "' in ", 0), 0u) << a.reason;  // the client gets its own text
+  // The client gets its own text back, made printable as every peer's text is (transport::printable).
+  EXPECT_EQ(a.reason.rfind("no scene 'x\\x0a" + forged + "' in ", 0), 0u) << a.reason;
   const auto deadline = Clock::now() + kAnswer;
   while (server_->log().find("load (command") == std::string::npos && Clock::now() < deadline)
     std::this_thread::sleep_for(Millis(20));
