@@ -1,4 +1,5 @@
 #include "directory.hpp"
+#include "client.hpp"
 
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
@@ -65,6 +66,7 @@ void read_builtins(const transport::Entity& participants, const transport::Entit
 
 Directory discover(int domain, double seconds) {
   transport::use_default_config(transport::kDefaultCycloneConfig);
+  route_cyclone_log();
   const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain));
   const transport::Topics topics(participant, false);
   const transport::Reader<ladder_msg_SceneInfo> scenes(participant, topics.scene_info, transport::Profile::SceneInfo);

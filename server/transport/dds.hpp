@@ -248,8 +248,8 @@ std::string text_of(const char (&src)[N]) {
 // Text from a peer made safe for a log line or a terminal: each control character (a newline would start a forged
 // line, an escape sequence would drive the terminal), the C1 controls U+0080 to U+009F and every byte that is not
 // part of valid UTF-8 written as \xNN, and a backslash as \\ so that the escape cannot be forged either. What comes
-// out is valid UTF-8 (cairo, which draws the viewer's text, needs that: invalid text left its context in an error
-// state and the window stopped drawing).
+// out is valid UTF-8 (cairo, which draws the viewer's text, needs that: with a scene name that was not, the window's
+// picture stopped for good).
 inline std::string printable(std::string_view text) {
   std::string out;
   out.reserve(text.size());

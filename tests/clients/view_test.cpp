@@ -958,6 +958,25 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
   forger.join();
 }
 
+// Cyclone's lines on a client's standard error (client::route_cyclone_log): three in ten seconds, then how many were
+// not shown. A peer whose samples Cyclone cannot decode made it print one a sample, 33 a second.
+TEST(ForgedPeer, CyclonesLinesAreLimitedToThreeInTenSecondsAndTheRestCounted) {
+  client::LineLimiter limit(3, std::chrono::seconds(10));
+  const Clock::time_point t0 = Clock::now();
+  bool shown = false;
+  std::vector<bool> seen;
+  for (int i = 0; i < 40; ++i) {  // 40 lines in 4 s
+    EXPECT_EQ(limit.admit(t0 + Millis(100 * i), shown), 0u);
+    seen.push_back(shown);
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), true), 3);
+  EXPECT_TRUE(seen[0] && seen[1] && seen[2]);
+  EXPECT_EQ(limit.admit(t0 + Millis(10'000), shown), 37u);  // the next period: the 37 not shown, and this one shown
+  EXPECT_TRUE(shown);
+  EXPECT_EQ(limit.admit(t0 + Millis(20'000), shown), 0u);
+  EXPECT_TRUE(shown);
+}
+
 // With no ladderd on the domain, a peer publishing a State and a SceneInfo under a sim id is taken as its server
 // (without DDS Security, anyone can: docs/security.md). Its text comes out printable (an escape sequence, a newline
 // and bytes that are not UTF-8 escaped as \xNN: they reached the terminal and, in the window, left cairo unable to
