@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <mutex>
 #include <stdexcept>
-#include <utility>
 
 namespace ladder::client {
 
@@ -162,25 +161,13 @@ constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096
 
 }  // namespace
 
-std::uint64_t LineLimiter::admit(Clock::time_point now, bool& shown) {
-  std::uint64_t report = 0;
-  if (now - window_ >= period_) {
-    report = std::exchange(hidden_, 0);
-    window_ = now;
-    lines_ = 0;
-  }
-  shown = ++lines_ <= max_lines_;
-  if (!shown) ++hidden_;
-  return report;
-}
-
 namespace {
 // Cyclone's own warnings and errors, on standard error: three in ten seconds at most, then how many were not shown,
 // each made printable. (A sample Cyclone cannot decode, from a publisher built from another ladder.idl, is a line
 // each: 33 a second reached a viewer's terminal from one such peer.)
 void cyclone_line(const char* message) {
   static std::mutex mutex;
-  static LineLimiter limiter(3, std::chrono::seconds(10));
+  static transport::LineLimiter limiter(3, std::chrono::seconds(10));
   std::lock_guard lock(mutex);
   bool shown = false;
   if (const std::uint64_t hidden = limiter.admit(Clock::now(), shown))

@@ -75,20 +75,6 @@ struct SceneInfo {
 // does it; a program that reads DDS without one (ladderctl list) calls it first.
 void route_cyclone_log();
 
-// At most `max_lines` lines shown in each `period`: admit() says whether this one is (`shown`), and returns how many
-// were not in the period just ended when a new one starts (0 otherwise), for a line that says so.
-class LineLimiter {
- public:
-  LineLimiter(int max_lines, std::chrono::steady_clock::duration period) : max_lines_(max_lines), period_(period) {}
-  std::uint64_t admit(std::chrono::steady_clock::time_point now, bool& shown);
-
- private:
-  int max_lines_;
-  std::chrono::steady_clock::duration period_;
-  std::chrono::steady_clock::time_point window_{};
-  int lines_ = 0;
-  std::uint64_t hidden_ = 0;
-};
 
 // Command builders: each fills the fields its kind uses.
 namespace cmd {

@@ -27,19 +27,13 @@ namespace {
 // it cannot deserialize), so at most 10 lines a second go through; the rest are counted in the next line.
 void cyclone_line(const char* message) {
   static std::mutex mutex;
-  static Clock::time_point window{};
-  static int lines = 0;
-  static std::uint64_t suppressed = 0;
+  static transport::LineLimiter limiter(10, std::chrono::seconds(1));
   std::lock_guard lock(mutex);
-  const Clock::time_point now = Clock::now();
-  if (now - window >= std::chrono::seconds(1)) window = now, lines = 0;
-  if (++lines > 10) {
-    ++suppressed;
-    return;
-  }
-  if (suppressed > 0)
-    spdlog::warn("cyclone: {} (and {} more lines not shown)", message, std::exchange(suppressed, 0));
-  else
+  bool shown = false;
+  const std::uint64_t hidden = limiter.admit(Clock::now(), shown);
+  if (hidden > 0)  // (the first line of a new second is always shown)
+    spdlog::warn("cyclone: {} (and {} more lines not shown)", message, hidden);
+  else if (shown)
     spdlog::warn("cyclone: {}", message);
 }
 

@@ -115,6 +115,32 @@ inline constexpr int kMaxDomain = 231;
 void route_cyclone_log(void (*sink)(const char* message), const char* topic);
 std::uint64_t undecodable_samples();
 
+// At most `max_lines` lines shown in each `period`, for a sink of route_cyclone_log(): admit() says whether this one
+// is (`shown`), and returns how many were not in the period just ended when a new one starts (0 otherwise), for a
+// line that says so. Not thread-safe: the sink holds a lock around it.
+class LineLimiter {
+ public:
+  LineLimiter(int max_lines, std::chrono::steady_clock::duration period) : max_lines_(max_lines), period_(period) {}
+  std::uint64_t admit(std::chrono::steady_clock::time_point now, bool& shown) {
+    std::uint64_t report = 0;
+    if (now - window_ >= period_) {
+      report = std::exchange(hidden_, 0);
+      window_ = now;
+      lines_ = 0;
+    }
+    shown = ++lines_ <= max_lines_;
+    if (!shown) ++hidden_;
+    return report;
+  }
+
+ private:
+  int max_lines_;
+  std::chrono::steady_clock::duration period_;
+  std::chrono::steady_clock::time_point window_{};
+  int lines_ = 0;
+  std::uint64_t hidden_ = 0;
+};
+
 struct Identity;  // transport/security.hpp
 // A participant on `domain`; with DDS Security when `identity` is given, or else when a default identity is set
 // (set_default_identity, from a program's --security).

@@ -958,10 +958,10 @@ TEST_F(View, AForgedSceneInfoCannotHoldTheViewerPastItsTimeout) {
   forger.join();
 }
 
-// Cyclone's lines on a client's standard error (client::route_cyclone_log): three in ten seconds, then how many were
-// not shown. A peer whose samples Cyclone cannot decode made it print one a sample, 33 a second.
+// Cyclone's lines on a client's standard error (client::route_cyclone_log, with transport::LineLimiter, as ladderd's
+// log): three in ten seconds, then how many were not shown. A peer whose samples Cyclone cannot decode made it print one a sample, 33 a second.
 TEST(ForgedPeer, CyclonesLinesAreLimitedToThreeInTenSecondsAndTheRestCounted) {
-  client::LineLimiter limit(3, std::chrono::seconds(10));
+  transport::LineLimiter limit(3, std::chrono::seconds(10));
   const Clock::time_point t0 = Clock::now();
   bool shown = false;
   std::vector<bool> seen;
