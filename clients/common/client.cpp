@@ -1,5 +1,6 @@
 #include "client.hpp"
 
+#include "ladder/limits.hpp"
 #include "transport/default_config.hpp"
 
 #include <unistd.h>
@@ -156,7 +157,6 @@ std::string printable_lines(std::string_view text) {
   return out;
 }
 
-constexpr std::uint32_t kMaxBlocks = 1'000'000;  // the most blocks a scene may have (docs/scenes.md)
 constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096, kMaxCandidates = 8;
 
 }  // namespace
@@ -177,6 +177,13 @@ void cyclone_line(const char* message) {
 }  // namespace
 
 void route_cyclone_log() { transport::route_cyclone_log(cyclone_line, "ladder/State"); }
+
+std::string fixed(double v, int decimals) {
+  char buf[40];
+  if (std::abs(v) < 1e9) std::snprintf(buf, sizeof buf, "%.*f", std::clamp(decimals, 0, 9), v);
+  else std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
 
 Client::Client(int domain, std::string sim_id, std::string client_id, const transport::Identity* identity)
     : sim_id_(std::move(sim_id)),
@@ -219,12 +226,17 @@ bool Client::from_server(const transport::Entity& reader, dds_instance_handle_t 
 void Client::take_states() {
   state_r_.take([&](const ladder_msg_State& s, const dds_sample_info_t& info) {
     if (text_of(s.sim_id) != sim_id_) return;
-    // One pose (three numbers) and one hinge per block, every pose finite, at most one grip a block: a state that is
-    // not so was not written by a ladderd (which never publishes a non-finite number) and is not drawable.
+    // One pose (three numbers) and one hinge per block, every number finite, the sim time not negative, at most one
+    // grip a block: a state that is not so was not written by a ladderd (which never publishes a non-finite number)
+    // and is not drawable.
     const std::size_t n = s.hinge_corner._length;
+    const auto finite = [](double v) { return std::isfinite(v); };
     if (s.poses._length != 3 * n || s.hinge_status._length != n || s.hinge_flips._length != n ||
-        s.grips._length > n || !std::all_of(s.poses._buffer, s.poses._buffer + s.poses._length,
-                                            [](double v) { return std::isfinite(v); })) {
+        s.grips._length > n || !(s.sim_time >= 0 && finite(s.sim_time) && finite(s.energy)) ||
+        !std::all_of(s.poses._buffer, s.poses._buffer + s.poses._length, finite) ||
+        !std::all_of(s.grips._buffer, s.grips._buffer + s.grips._length, [&](const ladder_msg_Grip& g) {
+          return finite(g.target_x) && finite(g.target_y) && finite(g.angle);
+        })) {
       ++states_malformed_;
       return;
     }
@@ -318,7 +330,7 @@ void Client::poll() {
     si.options = printable_lines(text_of(s.options));
     // The masses only as a ladderd sends them, one a block and no more blocks than a scene may have: a peer's
     // sequence is as long as it likes, and a copy of it is kept for each of kMaxScenes participants.
-    if (s.masses._length == s.blocks && s.blocks <= kMaxBlocks)
+    if (s.masses._length == s.blocks && s.blocks <= static_cast<std::uint32_t>(kMaxBlocks))
       si.masses.assign(s.masses._buffer, s.masses._buffer + s.masses._length);
     else
       si.masses.clear();

@@ -75,6 +75,9 @@ struct SceneInfo {
 // does it; a program that reads DDS without one (ladderctl list) calls it first.
 void route_cyclone_log();
 
+// A peer's number for a line of text: with `decimals` decimals, or as %g from 1e9 on (a forged sim time of 1e300
+// would otherwise print 300 digits and cut the line it is in).
+std::string fixed(double v, int decimals);
 
 // Command builders: each fills the fields its kind uses.
 namespace cmd {
@@ -147,8 +150,9 @@ class Client {
   const std::optional<ladder_msg_Stats>& latest_stats() const { return stats_; }
   std::uint64_t stats_received() const { return stats_count_; }
   std::size_t acks_received() const { return acks_received_; }
-  // States dropped as not a ladderd's: their sequences disagree (not one pose and one hinge per block), a pose is not
-  // a finite number, or there are more grips than blocks.
+  // States dropped as not a ladderd's: their sequences disagree (not one pose and one hinge per block), a number (a
+  // pose, the energy, the sim time, a grip's target or angle) is not finite, the sim time is negative, or there are
+  // more grips than blocks.
   std::uint64_t states_malformed() const { return states_malformed_; }
   const std::string& client_id() const { return client_id_; }
   // Samples (acks, states, scene infos, events, stats) ignored because their writer is not in the participant of

@@ -39,7 +39,7 @@ std::string Feed::why_undrawable() const {
   const auto& i = client_.scene_info();
   if (!s && client_.states_malformed() > 0)
     return std::to_string(client_.states_malformed()) + " States came, none drawable (not a ladderd's: sequences of " +
-           "different lengths, a pose that is not a finite number, or more grips than blocks)";
+           "different lengths, a number that is not finite, a negative sim time, or more grips than blocks)";
   if (!s) return "no State has come";
   if (!i) return "no SceneInfo has come";
   return "the States are of scene generation " + std::to_string(s->generation) + " but the SceneInfo of generation " +
@@ -63,7 +63,7 @@ std::vector<std::string> Outbox::take() {
       continue;
     }
     char buf[96];
-    if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %.3f s", a->sim_time);
+    if (a && a->accepted) std::snprintf(buf, sizeof buf, "accepted at t = %s s", client::fixed(a->sim_time, 3).c_str());
     ready_.push_back(it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer"));
     it = pending_.erase(it);
   }

@@ -151,11 +151,12 @@ class Terminal {
 // to tip the ladder from elsewhere.
 std::vector<std::string> heading(const Options& o, const Feed& feed, const client::State& s, bool keys,
                                  const std::string& answer) {
-  char line[256], rtf[32] = "-";
-  if (feed.stats()) std::snprintf(rtf, sizeof rtf, "%.2f", feed.stats()->real_time_factor);
+  char line[256];
+  const std::string rtf = feed.stats() ? client::fixed(feed.stats()->real_time_factor, 2) : "-";
   // What changes first, the sim id last: a narrow terminal cuts the end.
-  std::snprintf(line, sizeof line, "t = %.3f s%s  real-time x%s  %u blocks  sim id '%s'", s.sim_time,
-                s.paused ? "  PAUSED" : "", rtf, feed.info()->blocks, o.sim_id.c_str());
+  std::snprintf(line, sizeof line, "t = %s s%s  real-time x%s  %u blocks  sim id '%s'",
+                client::fixed(s.sim_time, 3).c_str(), s.paused ? "  PAUSED" : "", rtf.c_str(), feed.info()->blocks,
+                o.sim_id.c_str());
   std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? "  (waiting for ladderd: no news for a while)"
                                                                        : "")};
   const std::string elsewhere =

@@ -453,10 +453,9 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
     std::vector<std::string> top;
     char buf[160];
     if (s) {
-      char rtf[32] = "-";
-      if (hud.real_time_factor >= 0) std::snprintf(rtf, sizeof rtf, "%.2f", hud.real_time_factor);
-      std::snprintf(buf, sizeof buf, "%s  t = %.3f s  real-time x%s%s", hud.title.c_str(), s->sim_time, rtf,
-                    s->paused ? "  PAUSED" : "");
+      const std::string rtf = hud.real_time_factor >= 0 ? client::fixed(hud.real_time_factor, 2) : "-";
+      std::snprintf(buf, sizeof buf, "%s  t = %s s  real-time x%s%s", hud.title.c_str(),
+                    client::fixed(s->sim_time, 3).c_str(), rtf.c_str(), s->paused ? "  PAUSED" : "");
       top.emplace_back(buf);
     } else {
       top.push_back(hud.title);

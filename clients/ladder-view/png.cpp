@@ -9,11 +9,7 @@
 namespace ladder::view {
 
 namespace {
-std::string fixed3(double t) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", t);
-  return buf;
-}
+std::string fixed3(double t) { return client::fixed(t, 3); }
 }  // namespace
 
 int run_png(const Options& o) {

@@ -1,5 +1,6 @@
 #include "list.hpp"
 
+#include "client.hpp"
 #include "directory.hpp"
 
 #include <cstdio>
@@ -19,10 +20,10 @@ int list(int domain, double seconds) {
   std::printf("%zu ladder%s on DDS domain %d:\n", d.ladders.size(), d.ladders.size() == 1 ? "" : "s", domain);
   std::printf("%-32s %-20s %-28s %8s %10s\n", "sim id", "host", "scene", "blocks", "real-time");
   for (const client::LadderEntry& l : d.ladders) {
-    char rtf[32] = "-";
-    if (l.rtf >= 0) std::snprintf(rtf, sizeof rtf, "x%.2f", l.rtf);
-    std::printf("%-32s %-20s %-28s %8u %10s%s\n", l.sim_id.c_str(), l.host.c_str(), l.scene.c_str(), l.blocks, rtf,
-                l.replay ? "  (a replay)" : "");
+    std::string rtf = "-";
+    if (l.rtf >= 0) rtf = 'x' + client::fixed(l.rtf, 2);
+    std::printf("%-32s %-20s %-28s %8u %10s%s\n", l.sim_id.c_str(), l.host.c_str(), l.scene.c_str(), l.blocks,
+                rtf.c_str(), l.replay ? "  (a replay)" : "");
   }
   std::printf("clients on the domain: %zu participant%s reading states (discovery does not say which ladder each "
               "one watches)\n",

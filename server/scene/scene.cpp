@@ -1,5 +1,7 @@
 #include "scene/scene.hpp"
 
+#include "ladder/limits.hpp"
+
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -26,7 +28,6 @@ namespace {
 using core::Vec2;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr int kMaxBlocks = 1'000'000;  // about 1 GB of memory; issue 6 tests up to this size
 // The bounds below keep every accepted live setting (also from a scene file) within what a step can take; the
 // figures were measured on the shipped scenes (docs/scenes.md gives each bound's reason).
 constexpr double kMaxGravity = 1000;     // [m/s^2] about 100 g; 1e4 still steps, 1e308 overflows the first step
@@ -84,12 +85,14 @@ constexpr std::array kKeys{
     KeyDef{.name = "ladder.flip_impact", .kind = Kind::Choice, .choices = "face|corner",
            .help = "a flip-flop's inelastic meeting: the whole face, or the far corners only (the paper's)"},
     KeyDef{.name = "ladder.hinge_inset", .kind = Kind::Number, .range = {0, 0.5, false, true},
-           .help = "hinge distance in from the block's edge [fraction of the thickness]"},
+           .help = "hinge distance in from the block's edge [fraction of the thickness]",
+           .range_text = ">= 0 and < 0.5; 0 with ladder.hinge = \"rolling\""},
     KeyDef{.name = "ladder.hinge", .kind = Kind::Choice, .choices = "corner|rolling",
            .help = "the paper's corner hinge, or the real toy's rolling hinge (rounded ends rolling on each other)"},
     KeyDef{.name = "ladder.end_radius", .kind = Kind::Number, .range = at_least(0),
            .help = "radius of the rounded block ends of a rolling hinge; 0 turns about the corner [m]",
-           .range_text = ">= 0 and <= ladder.thickness / 2; > 0 needs ladder.hinge = \"rolling\""},
+           .range_text = "0, or >= ladder.thickness * 1e-6 and <= ladder.thickness / 2; > 0 needs ladder.hinge = "
+                         "\"rolling\""},
     KeyDef{.name = "ladder.tip_duration", .kind = Kind::Number, .range = at_least(1e-3),
            .help = "time the hand takes to turn the top block over [s]"},
     KeyDef{.name = "ladder.unlock_threshold", .kind = Kind::Number, .range = at_least(0),
@@ -106,7 +109,7 @@ constexpr std::array kKeys{
     KeyDef{.name = "initial.tilt", .kind = Kind::Number, .range = between(-2 * std::numbers::pi, 2 * std::numbers::pi),
            .help = "initial rotation of the whole ladder about its top-left corner [rad]",
            .range_text = ">= -2 pi and <= 2 pi"},
-    KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(1e-7, 0.1), .help = "time step [s]"},
+    KeyDef{.name = "sim.dt", .kind = Kind::Number, .range = between(kMinDt, kMaxDt), .help = "time step [s]"},
     KeyDef{.name = "sim.substeps", .kind = Kind::Integer, .range = between(1, 1000),
            .help = "steps of sim.dt / sim.substeps taken per step of sim.dt (the server's tick)",
            .range_text = ">= 1 and <= 1000, and sim.dt / sim.substeps >= 1e-07 s"},

@@ -8,6 +8,7 @@
 // No DDS here (and no file): a fuzzer links this alone.
 #pragma once
 
+#include "ladder/limits.hpp"
 #include "ladderlcm/checkpoint_t.hpp"
 #include "ladderlcm/command_t.hpp"
 #include "ladderlcm/event_t.hpp"
@@ -22,14 +23,14 @@
 namespace ladder::transport {
 
 // The most a log may hold. docs/recording.md states them.
-inline constexpr std::int32_t kLogMaxBlocks = 1'000'000;   // what a scene file may ask for (ladder.blocks)
+inline constexpr std::int32_t kLogMaxBlocks = kMaxBlocks;   // what a scene file may ask for (ladder.blocks)
 inline constexpr std::int32_t kLogMaxOverrides = 10'000;   // --set overrides of one scene
 inline constexpr std::size_t kLogMaxSceneText = 64u << 20;  // a scene file's text (1e6 masses take about 8 MB)
 inline constexpr std::size_t kLogMaxText = 64u << 10;       // every other string (names, reasons, details)
 inline constexpr double kLogMaxSimTime = 1e7;               // [s] of simulated time in one scene (116 days)
 // Steps in one scene: kLogMaxSimTime at the smallest time step a scene may have (sim.dt >= 1e-7 s).
 inline constexpr std::int64_t kLogMaxStep = 100'000'000'000'000;
-inline constexpr double kLogMinDt = 1e-7, kLogMaxDt = 0.1;  // [s] sim.dt's range in scene files
+inline constexpr double kLogMinDt = kMinDt, kLogMaxDt = kMaxDt;  // [s] sim.dt's range in scene files
 
 // Decodes one event's data as the type: "" when it decodes, every byte used and every value sane; else what is
 // wrong, naming the field ("num_blocks = 268435457 is more than 1000000 (...)"). `out` is then unspecified.

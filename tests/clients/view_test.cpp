@@ -1029,6 +1029,29 @@ TEST(ForgedPeer, TextIsMadePrintableAndAStateThatIsNotFiniteIsNotTaken) {
   transport::lend_blocks(st, poses, corner, status, flips);
   state_w.write(st);
   EXPECT_TRUE(eventually([&] { return c.poll(), c.latest_state()->seq == 3; }, kStart));
+
+  // The other numbers of a State: an energy that is not finite (the plot took it for no state), a sim time of
+  // -1e300 (the summary lines printed 300 digits, cut), a grip's target that is not finite.
+  const std::vector<ladder_msg_Grip> grip{ladder_msg_Grip{.block = 1, .target_x = NAN, .target_y = 0, .hold_angle = false, .angle = 0}};
+  const auto refused = [&](std::uint64_t seq, auto&& spoil) {
+    ladder_msg_State bad = st;
+    bad.seq = seq;
+    transport::lend_blocks(bad, poses, corner, status, flips);
+    spoil(bad);
+    const std::uint64_t before = c.states_malformed();
+    state_w.write(bad);
+    EXPECT_TRUE(eventually([&] { return c.poll(), c.states_malformed() == before + 1; }, kStart)) << "seq " << seq;
+    EXPECT_EQ(c.latest_state()->seq, 3u) << "seq " << seq;
+  };
+  refused(4, [](ladder_msg_State& m) { m.energy = NAN; });
+  refused(5, [](ladder_msg_State& m) { m.sim_time = -1e300; });
+  refused(6, [](ladder_msg_State& m) { m.sim_time = INFINITY; });
+  refused(7, [&](ladder_msg_State& m) { transport::lend(m.grips, grip); });
+  st.seq = 8;
+  st.sim_time = 1e300;  // finite and not negative: taken (the texts print it in %g beyond 1e9 s)
+  transport::lend_blocks(st, poses, corner, status, flips);
+  state_w.write(st);
+  EXPECT_TRUE(eventually([&] { return c.poll(), c.latest_state()->seq == 8; }, kStart));
 }
 
 // An X server of our own for the window; the screen is an XWD file we can read at any time.
