@@ -88,9 +88,12 @@ void wait_matched(const Entity& e, F get) {
   ladder_msg_Command c{};
   copy_text(c.sim_id, sim_id);
   copy_text(c.client_id, "newer-client");
-  c.kind = static_cast<ladder_msg_CommandKind>(99);
-  for (int i = 1; i <= count; ++i) {
-    c.command_id = static_cast<std::uint64_t>(i);
+  // A kind this ladder.idl does not have: its bytes written as such (a cast to the enum would be unspecified).
+  const std::int32_t unknown_kind = 99;
+  static_assert(sizeof c.kind == sizeof unknown_kind);
+  std::memcpy(&c.kind, &unknown_kind, sizeof c.kind);
+  for (int n = 1; n <= count; ++n) {
+    c.command_id = static_cast<std::uint64_t>(n);
     check(dds_write(writer.get(), &c), "write");
   }
   say("sent");
