@@ -387,6 +387,22 @@ void Ladder::book_motion(const core::Energy& e0) {
   piece_work_ = 0;
 }
 
+// World's energies count the dynamic bodies; a block locked to the held block is in the hand's kinematic body, so it
+// is added here (its part's motion: the hand's).
+double Ladder::energy() const {
+  double e = world_.kinetic_energy() + world_.potential_energy();
+  if (!held()) return e;
+  const int hand_body = world_.body_of_part(0);
+  for (const int i : world_.body_parts(hand_body)) {
+    if (i >= spec_.blocks || world_.is_kinematic(i)) continue;
+    const double m = block_mass(i);
+    const double w = world_.part_omega(i);
+    e += 0.5 * m * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w) -
+         m * world_.options().gravity.dot(world_.part_position(i));
+  }
+  return e;
+}
+
 // The kinetic energy of every block but a held one [J]. Unlike World::kinetic_energy() (dynamic bodies only), a block
 // welded to the hand still counts, with the hand's motion: so an event's energy is what its velocity fix removed
 // from the blocks, not the energy of a block that joined or left the hand's body.

@@ -184,7 +184,9 @@ class Ladder {
   const std::vector<HingeInfo>& hinges() const { return hinges_; }
   bool held() const;
   double hinge_measure(int k) const;  // s of the class comment (> 0 means inside a forbidden quadrant)
-  double energy() const { return world_.kinetic_energy() + world_.potential_energy(); }
+  // Kinetic and potential energy of every block but a held one [J] (what a State publishes): a block locked to the
+  // held block counts too, moving with the hand, so the sum does not jump when one locks to it or lets go.
+  double energy() const;
   // Every loss since construction, and the part of it up to the last flip-flop with the number of flip-flops (each
   // flip-flop's event says what was lost since the one before).
   const Losses& losses() const { return losses_; }
