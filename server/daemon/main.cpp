@@ -37,7 +37,8 @@ int main(int argc, char** argv) {
   auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-231)")
                      ->check(transport::domain_check())
                      ->capture_default_str();
-  auto* sim_id = app.add_option("--sim-id", c.server.sim_id, "this ladder's id, to share a domain with others");
+  auto* sim_id = app.add_option("--sim-id", c.server.sim_id,
+                                "this ladder's id, to share a domain with others (refused if one there has it)");
   auto* rate =
       app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time")->capture_default_str();
   auto* publish = app.add_option("--publish-rate", c.server.rates.publish,

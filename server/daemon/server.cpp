@@ -8,6 +8,7 @@
 #include "daemon/tick_log.hpp"
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
+#include "transport/topics.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -37,6 +38,33 @@ void cyclone_line(const char* message) {
     spdlog::warn("cyclone: {}", message);
 }
 
+// Another ladder that answers to this sim id on the domain (a live ladderd, or `ladderctl replay`): two publishers of
+// one name would mix their states in every client, and both would take its commands. Its SceneInfo, which it keeps
+// for late joiners, comes as soon as discovery has found it: looked for during `wait` (on loopback discovery takes
+// a few milliseconds; a ladder that discovery has not found by then is not seen). "" when there is none, or when
+// this participant may not read SceneInfo (DDS Security's server permissions do not grant it).
+std::string sim_id_taken(const ServerConfig& config, std::chrono::milliseconds wait) {
+  try {
+    const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(config.domain));
+    const transport::Entity topic = transport::make_topic(participant, &ladder_msg_SceneInfo_desc, "ladder/SceneInfo");
+    const transport::Reader<ladder_msg_SceneInfo> reader(participant, topic, transport::Profile::SceneInfo);
+    const Clock::time_point end = Clock::now() + wait;
+    std::string found;
+    while (found.empty() && Clock::now() < end) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      reader.take([&](const ladder_msg_SceneInfo& s, const dds_sample_info_t&) {
+        if (transport::text_of(s.sim_id) != config.sim_id) return;
+        found = s.replay ? std::string("a replay (ladderctl replay)")
+                         : "a live ladderd, serving '" + transport::printable(transport::text_of(s.scene_name)) + "'";
+      });
+    }
+    return found;
+  } catch (const std::exception& e) {
+    spdlog::debug("did not look for another ladder of sim id '{}': {}", config.sim_id, e.what());
+    return {};
+  }
+}
+
 }  // namespace
 
 int run_server(const ServerConfig& config, const scene::Scene& scene, const std::atomic<bool>& stop) {
@@ -45,6 +73,9 @@ int run_server(const ServerConfig& config, const scene::Scene& scene, const std:
 
 int run_server(const ServerConfig& config, std::unique_ptr<Session> session, const std::atomic<bool>& stop) {
   const scene::Scene& scene = session->sim().scene();
+  if (const std::string other = sim_id_taken(config, kSimIdCheck); !other.empty())
+    throw SimIdTaken("sim id '" + config.sim_id + "' on DDS domain " + std::to_string(config.domain) +
+                     " is already taken by " + other + "; stop it, or give this server another --sim-id");
   Shared shared(config);
   const Notifier notifier;
   shared.notifier = &notifier;

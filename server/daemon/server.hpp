@@ -7,6 +7,7 @@
 #include "daemon/session.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,13 @@ class OutputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// Another ladder already answers to the sim id on the domain (run_server looks for kSimIdCheck first): bad input,
+// before anything is published.
+class SimIdTaken : public OutputError {
+ public:
+  using OutputError::OutputError;
+};
+inline constexpr std::chrono::milliseconds kSimIdCheck{500};
 
 // Runs until `stop` becomes true (a signal handler sets it). Returns the process exit code. Throws
 // transport::DdsError when DDS cannot be set up.

@@ -263,6 +263,34 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
 }
 
+// A second ladderd started with the sim id a running one serves on the same domain (`scripts/run` run again in another
+// terminal) refuses to start, naming the other, and publishes nothing: the two had served side by side, and every
+// client saw their states mixed (sim time 41 s, then 12 s) and both took its commands. The first one serves on.
+TEST_F(Server, ASecondServerOfTheSameSimIdRefusesToStartAndTheFirstServesOn) {
+  start();
+  const std::string log = std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".second.log";
+  Process second({std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain", std::to_string(domain_),
+                  "--sim-id", sim_id_},
+                 log);
+  const auto status = second.wait_exit(kStart);
+  ASSERT_TRUE(status.has_value()) << "the second server is still running; its log:\n" << second.log();
+  ASSERT_TRUE(WIFEXITED(*status));
+  EXPECT_EQ(WEXITSTATUS(*status), 2);
+  EXPECT_NE(second.log().find("sim id '" + sim_id_ + "' on DDS domain " + std::to_string(domain_) +
+                              " is already taken by a live ladderd, serving '"),
+            std::string::npos)
+      << second.log();
+  EXPECT_EQ(second.log().find("] serving"), std::string::npos) << second.log();  // it never served
+  const client::Ack a = c().call(cmd::pause(), kAnswer);
+  EXPECT_TRUE(a.accepted) << a.reason;
+  // Another sim id on the same domain is not taken.
+  Process other({std::string(LADDER_BINARY_DIR) + "/server/ladderd", "--domain", std::to_string(domain_),
+                 "--sim-id", sim_id_ + "-other"},
+                std::string(LADDER_BINARY_DIR) + "/tests/" + test_name() + ".other.log");
+  Client oc(domain_, sim_id_ + "-other", "test-other");
+  EXPECT_TRUE(oc.wait_for_server(kStart)) << other.log();
+}
+
 // A hang-up (a closed terminal or SSH session) stops the server as cleanly as SIGTERM: exit 0, the reason logged.
 // (It used to end it at once, without its last lines.)
 TEST_F(Server, SighupStopsCleanlyAndSaysWhy) {
