@@ -6,8 +6,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <stdexcept>
 
@@ -178,6 +181,17 @@ void cyclone_line(const char* message) {
 
 void route_cyclone_log() { transport::route_cyclone_log(cyclone_line, "ladder/State"); }
 
+std::string unwritable(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return "it is a folder";
+  const fs::path parent = fs::path(path).parent_path();
+  const std::string dir = parent.empty() ? "." : parent.string();
+  if (!fs::is_directory(dir, ec)) return "no folder '" + dir + "'";
+  if (access(dir.c_str(), W_OK) != 0) return std::string(std::strerror(errno)) + " (folder '" + dir + "')";
+  return {};
+}
+
 std::string fixed(double v, int decimals) {
   char buf[40];
   if (std::abs(v) < 1e9) std::snprintf(buf, sizeof buf, "%.*f", std::clamp(decimals, 0, 9), v);
@@ -203,6 +217,19 @@ Client::Client(int domain, std::string sim_id, std::string client_id, const tran
   for (const transport::Entity* r : {&ack_r_.entity(), &state_r_.entity(), &scene_r_.entity(), &event_r_.entity(),
                                      &stats_r_.entity()})
     if (*r) waiter_.attach(*r);
+  domain_ = domain;
+}
+
+std::string Client::no_server(double timeout_s) const {
+  char t[32];
+  std::snprintf(t, sizeof t, "%g", timeout_s);
+  std::string text = "no ladderd with sim id '" + sim_id_ + "' on DDS domain " + std::to_string(domain_) + " after " +
+                     t + " s; ";
+  if (other_sim_ids_.empty()) return text + "is it running, and is CYCLONEDDS_URI the same on both sides?";
+  text += other_sim_ids_.size() == 1 ? "the ladder there is" : "the ladders there are";
+  const char* sep = " ";
+  for (const std::string& id : other_sim_ids_) text += std::exchange(sep, ", ") + ("'" + id + "'");
+  return text + " (choose one with --sim-id)";
 }
 
 std::optional<Client::Key> Client::owner(const transport::Entity& reader, dds_instance_handle_t writer) {
@@ -314,7 +341,10 @@ void Client::poll() {
     });
   }
   scene_r_.take([&](const ladder_msg_SceneInfo& s, const dds_sample_info_t& info) {
-    if (text_of(s.sim_id) != sim_id_) return;
+    if (text_of(s.sim_id) != sim_id_) {
+      if (other_sim_ids_.size() < kMaxOtherSimIds) other_sim_ids_.insert(printable(text_of(s.sim_id)));
+      return;
+    }
     const auto who = owner(scene_r_.entity(), info.publication_handle);
     if (!who) return;
     const bool ours = server_ && *who == key_of(*server_);

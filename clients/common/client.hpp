@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -78,6 +79,10 @@ void route_cyclone_log();
 // A peer's number for a line of text: with `decimals` decimals, or as %g from 1e9 on (a forged sim time of 1e300
 // would otherwise print 300 digits and cut the line it is in).
 std::string fixed(double v, int decimals);
+
+// Why a file could not be written at `path`, or "" when its folder takes it (checked without creating it): for an
+// output named on the command line, checked before any waiting.
+std::string unwritable(const std::string& path);
 
 // Command builders: each fills the fields its kind uses.
 namespace cmd {
@@ -158,6 +163,13 @@ class Client {
   // Samples (acks, states, scene infos, events, stats) ignored because their writer is not in the participant of
   // the server this client found: another program publishing under the server's topics (docs/security.md).
   std::uint64_t forged() const { return forged_; }
+  // The sim ids of the other ladders whose SceneInfo came (at most kMaxOtherSimIds, made printable): what a user who
+  // mistyped --sim-id meant.
+  const std::set<std::string>& other_sim_ids() const { return other_sim_ids_; }
+  static constexpr std::size_t kMaxOtherSimIds = 8;
+  // "no ladderd with sim id 'ID' on DDS domain N after T s; ..." and what may be wrong: the ladders that are there
+  // (other_sim_ids()), or else the DDS configuration.
+  std::string no_server(double timeout_s) const;
 
  private:
   using Key = std::string;  // a participant's GUID as bytes
@@ -207,6 +219,8 @@ class Client {
   std::vector<std::pair<Key, Event>> early_events_;  // events that came before the server was known (bounded)
   std::map<dds_instance_handle_t, Key> owners_;       // writer -> its participant (owner())
   std::uint64_t forged_ = 0;
+  std::set<std::string> other_sim_ids_;
+  int domain_ = 0;
   std::optional<ladder_msg_Stats> stats_;
   std::uint64_t stats_count_ = 0;
 };

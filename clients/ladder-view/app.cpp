@@ -73,15 +73,8 @@ std::vector<std::string> Outbox::take() {
 
 bool found_server(const Options& o, client::Client& c) {
   if (c.wait_for_server(client::Millis(static_cast<long>(o.timeout * 1000)))) return true;
-  std::cerr << "ladder-view: " << no_server(o) << "\n";
+  std::cerr << "ladder-view: " << c.no_server(o.timeout) << "\n";
   return false;
-}
-
-std::string no_server(const Options& o) {
-  char t[32];
-  std::snprintf(t, sizeof t, "%g", o.timeout);
-  return "no ladderd with sim id '" + o.sim_id + "' on DDS domain " + std::to_string(o.domain) + " after " + t +
-         " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
 }
 
 Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,

@@ -92,10 +92,8 @@ int run_png(const Options& o);
 int run_ascii(const Options& o);
 int run_window(const Options& o);
 
-// Waits up to --timeout for the server; false (and the no_server message on standard error) if none answered.
+// Waits up to --timeout for the server; false (and Client::no_server's message on standard error) if none answered.
 bool found_server(const Options& o, client::Client& c);
-// "no ladderd with sim id ... on DDS domain N after T s; ..." (the same words as ladderctl's).
-std::string no_server(const Options& o);
 // The camera for `state`: the fixed --view if given, else the ladder framed in width x height (seen from the
 // side with --side).
 Camera camera_for(const Options& o, const client::SceneInfo& info, const client::State& state, int width,

@@ -157,8 +157,9 @@ std::vector<std::string> heading(const Options& o, const Feed& feed, const clien
   std::snprintf(line, sizeof line, "t = %s s%s  real-time x%s  %u blocks  sim id '%s'",
                 client::fixed(s.sim_time, 3).c_str(), s.paused ? "  PAUSED" : "", rtf.c_str(), feed.info()->blocks,
                 o.sim_id.c_str());
-  std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? "  (waiting for ladderd: no news for a while)"
-                                                                       : "")};
+  const char* quiet = feed.info()->replay ? "  (the replay has sent nothing for a while: ended or stopped?)"
+                                          : "  (waiting for ladderd: no news for a while)";
+  std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? quiet : "")};
   const std::string elsewhere =
       "from another terminal: ladderctl --sim-id " + o.sim_id + " --domain " + std::to_string(o.domain) + " tip";
   if (keys) {

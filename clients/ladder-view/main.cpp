@@ -2,6 +2,7 @@
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
 #include "cli_checks.hpp"
+#include "cli_error.hpp"
 #include "transport/dds.hpp"
 #include "transport/domain_option.hpp"
 #include "transport/security.hpp"
@@ -88,8 +89,7 @@ int main(int argc, char** argv) {
     if (!error.empty()) throw CLI::ValidationError(size.empty() || !error.starts_with("'" + size) ? "--view" : "--size",
                                                    error);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? kOk : kUsage;
+    return ladder::client::report_parse_error(app, e, "ladder-view") == 0 ? kOk : kUsage;
   }
   // Checked before DDS starts; every participant this process makes then uses it (the viewer only reads).
   std::optional<ladder::transport::Identity> identity;

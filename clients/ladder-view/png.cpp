@@ -13,6 +13,11 @@ std::string fixed3(double t) { return client::fixed(t, 3); }
 }  // namespace
 
 int run_png(const Options& o) {
+  // Before any waiting: a snapshot that cannot be written is known now, not after the server is found.
+  if (const std::string why = client::unwritable(o.png); !why.empty()) {
+    std::cerr << "ladder-view: cannot write " << o.png << ": " << why << "\n";
+    return 1;
+  }
   client::Client c(o.domain, o.sim_id);
   if (!found_server(o, c)) return kNoServer;
   // Wait for the state as long as the server keeps talking (a far --at may take a while).

@@ -155,8 +155,11 @@ class Viewer {
     const bool quiet = link_->feed.quiet() > 3;
     if (quiet == silent_) return;
     silent_ = quiet;
-    std::printf("ladder-view: ladderd '%s' %s\n", sim_id_.c_str(),
-                quiet ? "is not answering; waiting for it" : "answers again");
+    const bool replay = link_->feed.info() && link_->feed.info()->replay;
+    std::printf("ladder-view: %s '%s' %s\n", replay ? "the replay" : "ladderd", sim_id_.c_str(),
+                quiet ? (replay ? "has sent nothing for 3 s (ended or stopped?); waiting for it"
+                                : "is not answering; waiting for it")
+                      : "answers again");
     std::fflush(stdout);
     dirty_ = true;
   }
@@ -215,9 +218,15 @@ class Viewer {
     const client::State* s = link_->feed.state();
     if (!s) {
       hud.banner = "waiting for ladderd '" + sim_id_ + "' on DDS domain " + std::to_string(o_.domain) + " ...";
+      if (const auto& others = link_->client.other_sim_ids(); !others.empty())
+        hud.banner += " (there: '" + *others.begin() + "'" + (others.size() > 1 ? ", ..." : "") + ")";
     } else if (link_->feed.quiet() > 3) {
       char buf[128];
-      std::snprintf(buf, sizeof buf, "ladderd is not answering (%.0f s): waiting ...", link_->feed.quiet());
+      // A replay that has played to its end (or was stopped) goes quiet as a stopped server does.
+      const bool replay = link_->feed.info() && link_->feed.info()->replay;
+      std::snprintf(buf, sizeof buf, "%s (%.0f s): waiting ...",
+                    replay ? "the replay has sent nothing: ended or stopped?" : "ladderd is not answering",
+                    link_->feed.quiet());
       hud.banner = buf;
     }
     if (overlay_) {

@@ -4,6 +4,7 @@
 #include "transport/version.hpp"
 
 #include "cli_checks.hpp"
+#include "cli_error.hpp"
 #include "list.hpp"
 #include "replay.hpp"
 #include "scene/scene.hpp"
@@ -13,9 +14,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
-#include <cstring>
-#include <filesystem>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -24,8 +22,6 @@
 #include <optional>
 #include <sstream>
 #include <type_traits>
-
-#include <unistd.h>
 
 namespace ladder::ctl {
 
@@ -60,18 +56,6 @@ std::vector<double> numbers(const std::string& text, std::size_t min, std::size_
   return out;
 }
 
-// Why a file could not be written at `path`, or "" when its folder takes it (checked without creating it).
-std::string unwritable(const std::string& path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) return "it is a folder";
-  const fs::path parent = fs::path(path).parent_path();
-  const std::string dir = parent.empty() ? "." : parent.string();
-  if (!fs::is_directory(dir, ec)) return "no folder '" + dir + "'";
-  if (access(dir.c_str(), W_OK) != 0) return std::string(std::strerror(errno)) + " (folder '" + dir + "')";
-  return {};
-}
-
 std::string format_ack(const client::Ack& a) {
   char buf[96];
   if (a.accepted) {
@@ -89,10 +73,6 @@ std::string timeout_text(const Connection& c) {
   return t;
 }
 
-std::string no_server(const Connection& c) {
-  return "no ladderd with sim id '" + c.sim_id + "' on DDS domain " + std::to_string(c.domain) + " after " +
-         timeout_text(c) + " s; is it running, and is CYCLONEDDS_URI the same on both sides?";
-}
 
 Millis timeout_of(const Connection& c) { return Millis(static_cast<long>(c.timeout * 1000)); }
 
@@ -126,7 +106,7 @@ int make_client(const Connection& c, std::unique_ptr<Client>& client) {
 // Waits for the server (once); nullptr when it did not answer.
 Client* connect(Connection& c, std::unique_ptr<Client>& client) {
   if (!client->scene_info() && !client->wait_for_server(timeout_of(c))) {
-    std::cerr << "ladderctl: " << no_server(c) << "\n";
+    std::cerr << "ladderctl: " << client->no_server(c.timeout) << "\n";
     return nullptr;
   }
   return client.get();
@@ -379,7 +359,7 @@ int status(Client& client, const Connection& c) {
   const auto& state = client.latest_state();
   const auto stats = client.wait_stats([](const ladder_msg_Stats&) { return true; }, Millis(1500));
   if (!info || !state) {
-    std::cerr << "ladderctl: " << no_server(c) << "\n";
+    std::cerr << "ladderctl: " << client.no_server(c.timeout) << "\n";
     return kNoServer;
   }
   std::printf("server %s, sim id '%s' on DDS domain %d\n", info->server_version.c_str(), c.sim_id.c_str(), c.domain);
@@ -595,7 +575,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
         throw CLI::ValidationError("--size", "'" + v.plot_size + "' is not a size like 900x600 (200x150 to 8192x8192)");
     }
     // Before any watching: a live plot would otherwise find out that it cannot write only after --for seconds.
-    if (const std::string why = unwritable(v.plot.png); !why.empty())
+    if (const std::string why = client::unwritable(v.plot.png); !why.empty())
       throw CLI::ValidationError("PNG", "cannot write '" + v.plot.png + "': " + why);
     if (!v.plot.log.empty())
       standalone = [&v](const Connection&) { return plot_log(v.plot); };
@@ -626,22 +606,6 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   });
 }
 
-// Levenshtein distance with one row of the table (command names are short).
-std::size_t distance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diagonal = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t above = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = above;
-    }
-  }
-  return row[b.size()];
-}
-
 // Where the first word of `args` that is neither an option nor an option's value is: the command, if any.
 std::optional<std::size_t> command_at(const std::vector<std::string>& args) {
   static const std::vector<std::string> with_value{"--domain", "--sim-id", "--timeout", "--security"};
@@ -658,12 +622,7 @@ std::optional<std::size_t> command_at(const std::vector<std::string>& args) {
 }  // namespace
 
 std::string unknown_command(const std::string& word) {
-  std::string best;
-  std::size_t best_d = 3;  // at most two edits away, and fewer than the word has letters
-  for (const std::string& n : command_names()) {
-    const std::size_t d = n.starts_with(word) ? 0 : distance(word, n);
-    if (d < best_d && d < word.size()) best = n, best_d = d;
-  }
+  const std::string best = client::nearest(word, command_names());
   std::string out = "unknown command '" + word + "'";
   if (!best.empty()) out += "; did you mean '" + best + "'?";
   out += "\ncommands:";
@@ -704,8 +663,7 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   try {
     app.parse(reversed);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? kAccepted : kUsage;
+    return client::report_parse_error(app, e, interactive ? "" : "ladderctl") == 0 ? kAccepted : kUsage;
   }
   if (conn.domain != before.domain || conn.sim_id != before.sim_id || conn.security != before.security)
     client.reset();

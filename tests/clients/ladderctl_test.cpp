@@ -88,6 +88,10 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"watch state --rate -1", 2, "--rate: must be a number of 0 or more, not -1"},
       {"--timeout 1e10 status", 2, "--timeout: must be at most 1e+06, not 1e10"},
       {"frobnicate", 2, "ladderctl: unknown command 'frobnicate'\ncommands: tip poke push"},
+      // A mistyped option (of the command or of the connection), named with the nearest one; stray words named.
+      {"poke 3 --impuls 0,0.01", 2, "ladderctl: unknown option '--impuls' (did you mean '--impulse'?)\nRun with"},
+      {"tip --domian 5", 2, "ladderctl: unknown option '--domian' (did you mean '--domain'?)\nRun with"},
+      {"tip now", 2, "ladderctl: unexpected 'now'\nRun with"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
       {"step 0", 2, "N: must be a number greater than 0, not 0"},
       {"replay /dev/null --speed -1", 2, "--speed: must be a number of 0 or more, not -1"},
@@ -119,14 +123,29 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
 
 TEST_F(Ladderctl, NoServerGivesTheTimeoutMessageAndCodeThree) {
   const auto t0 = Clock::now();
-  const Result r = run("tip --domain " + std::to_string(domain_) + " --sim-id nobody-here --timeout 1");
+  const Result r = run("tip --domain 231 --sim-id nobody-here --timeout 1");  // the tests use domains 1 to 230
   const double took = std::chrono::duration<double>(Clock::now() - t0).count();
   EXPECT_EQ(r.code, 3) << r.output;
-  EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here' on DDS domain " + std::to_string(domain_) +
-                          " after 1 s; is it running, and is CYCLONEDDS_URI the same on both sides?"),
+  EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here' on DDS domain 231 after 1 s; is it running, and is "
+                          "CYCLONEDDS_URI the same on both sides?"),
             std::string::npos)
       << r.output;
   EXPECT_LT(took, 3.0);
+}
+
+// A mistyped --sim-id: the message names the ladder that is there (a fresh-eyes run found only "is it running?"
+// while `list` knew the answer).
+TEST_F(Ladderctl, AMistypedSimIdIsToldTheLaddersThatAreThere) {
+  ASSERT_EQ(ctl("status").code, 0);  // this test's server is up
+  for (const char* command : {"tip", "status"}) {
+    const Result r =
+        run(std::string(command) + " --domain " + std::to_string(domain_) + " --sim-id nobody-here --timeout 2");
+    EXPECT_EQ(r.code, 3) << r.output;
+    EXPECT_NE(r.output.find("no ladderd with sim id 'nobody-here' on DDS domain " + std::to_string(domain_) +
+                            " after 2 s; the ladder there is '" + sim_id_ + "' (choose one with --sim-id)"),
+              std::string::npos)
+        << command << ": " << r.output;
+  }
 }
 
 TEST_F(Ladderctl, WatchEventsPrintsTheRippleAsJson) {

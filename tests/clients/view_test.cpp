@@ -900,7 +900,11 @@ TEST_F(View, BadOptionsAreRefusedWithTheirReason) {
                         Case{png + " --security ''", "argument 4 is empty (after '--security')"},
                         Case{" --png ''", "argument 2 is empty (after '--png')"},
                         Case{png + " --security /etc/passwd", "/etc/passwd: a file, not an identity folder"},
-                        Case{png + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"}}) {
+                        Case{png + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+                        // A mistyped option: named, with the nearest one (CLI11 had said "The following arguments
+                        // were not expected: 230 --domian", without the program's name).
+                        Case{png + " --domian 230", "ladder-view: unknown option '--domian' (did you mean '--domain'?)\n"
+                                                    "Run with --help"}}) {
     const Result r = shell(kViewer + c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
