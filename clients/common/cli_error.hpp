@@ -41,10 +41,10 @@ inline std::string nearest(const std::string& word, const std::vector<std::strin
 }
 
 // Reports a parse error of `app` on standard error as "PROGRAM: ..." (no prefix when `program` is empty: the
-// prompt's commands) and returns the exit code: 0 for --help and
-// --version (CLI11 prints those), else 2. Words the command line did not expect (CLI11's "The following arguments
-// were not expected: 228 --domian", in reverse order when the words were parsed reversed) are named in the order
-// given, an unknown option with the nearest option of the command and of its parsed subcommand.
+// prompt's commands) and returns the exit code: 0 for --help and --version (CLI11 prints those), else 2. Words the
+// command line did not expect (CLI11's "The following arguments were not expected: 228 --domian", in reverse order
+// when the words were parsed reversed) are named in the order given, an unknown option with the nearest option of
+// the command and of its parsed subcommand.
 inline int report_parse_error(const CLI::App& app, const CLI::ParseError& e, const std::string& program) {
   if (e.get_exit_code() == 0) return app.exit(e);
   const std::string prefix = program.empty() ? "" : program + ": ";
