@@ -395,12 +395,14 @@ double Ladder::energy() const {
   const int hand_body = world_.body_of_part(0);
   for (const int i : world_.body_parts(hand_body)) {
     if (i >= spec_.blocks || world_.is_kinematic(i)) continue;
-    const double m = block_mass(i);
-    const double w = world_.part_omega(i);
-    e += 0.5 * m * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w) -
-         m * world_.options().gravity.dot(world_.part_position(i));
+    e += block_kinetic(i) - block_mass(i) * world_.options().gravity.dot(world_.part_position(i));
   }
   return e;
+}
+
+double Ladder::block_kinetic(int i) const {
+  const double w = world_.part_omega(i);
+  return 0.5 * block_mass(i) * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w);
 }
 
 // The kinetic energy of every block but a held one [J]. Unlike World::kinetic_energy() (dynamic bodies only), a block
@@ -408,12 +410,8 @@ double Ladder::energy() const {
 // from the blocks, not the energy of a block that joined or left the hand's body.
 double Ladder::blocks_kinetic() const {
   double e = 0;
-  for (int i = 0; i < spec_.blocks; ++i) {
-    if (world_.is_kinematic(i)) continue;
-    const double m = block_mass(i);
-    const double w = world_.part_omega(i);
-    e += 0.5 * m * (world_.part_velocity(i).squaredNorm() + inertia_factor_ * w * w);
-  }
+  for (int i = 0; i < spec_.blocks; ++i)
+    if (!world_.is_kinematic(i)) e += block_kinetic(i);
   return e;
 }
 

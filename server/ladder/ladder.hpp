@@ -224,6 +224,7 @@ class Ladder {
   bool folded(int k) const;   // hinge k's pair is nearer face to face than straight
   void move_hinge(int k);     // the hinge to the blocks' other ends (Algorithm 2, lines 1-3)
   double blocks_kinetic() const;
+  double block_kinetic(int i) const;  // block i's kinetic energy, from its part's motion [J]
   void book_motion(const core::Energy& e0);
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
