@@ -44,6 +44,8 @@ class Feed {
   // The latest state and its scene info, once both are there and belong to the same scene generation.
   const client::State* state() const;
   const client::SceneInfo* info() const;
+  // The publisher is a replay (ladderctl replay), as far as the scene info that came says.
+  bool replay() const { return info() && info()->replay; }
   const std::optional<ladder_msg_Stats>& stats() const { return stats_; }
   // Seconds since the server last sent a drawable state or stats; a stopped server goes quiet.
   double quiet() const { return std::chrono::duration<double>(Clock::now() - news_).count(); }

@@ -155,7 +155,7 @@ class Viewer {
     const bool quiet = link_->feed.quiet() > 3;
     if (quiet == silent_) return;
     silent_ = quiet;
-    const bool replay = link_->feed.info() && link_->feed.info()->replay;
+    const bool replay = link_->feed.replay();
     std::printf("ladder-view: %s '%s' %s\n", replay ? "the replay" : "ladderd", sim_id_.c_str(),
                 quiet ? (replay ? "has sent nothing for 3 s (ended or stopped?); waiting for it"
                                 : "is not answering; waiting for it")
@@ -211,7 +211,7 @@ class Viewer {
   void paint() {
     const auto t0 = Clock::now();
     Hud hud;
-    hud.title = link_->feed.info() && link_->feed.info()->replay ? sim_id_ + " (REPLAY)" : sim_id_;
+    hud.title = link_->feed.replay() ? sim_id_ + " (REPLAY)" : sim_id_;
     hud.stats = true;
     hud.numbers = numbers_;
     if (link_->feed.stats()) hud.real_time_factor = link_->feed.stats()->real_time_factor;
@@ -223,9 +223,8 @@ class Viewer {
     } else if (link_->feed.quiet() > 3) {
       char buf[128];
       // A replay that has played to its end (or was stopped) goes quiet as a stopped server does.
-      const bool replay = link_->feed.info() && link_->feed.info()->replay;
       std::snprintf(buf, sizeof buf, "%s (%.0f s): waiting ...",
-                    replay ? "the replay has sent nothing: ended or stopped?" : "ladderd is not answering",
+                    link_->feed.replay() ? "the replay has sent nothing: ended or stopped?" : "ladderd is not answering",
                     link_->feed.quiet());
       hud.banner = buf;
     }
