@@ -4,6 +4,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "ladder/spelling.hpp"
+
 #include <algorithm>
 #include <cstddef>
 #include <iostream>
@@ -12,29 +14,13 @@
 
 namespace ladder::client {
 
-// Levenshtein distance with one row of the table (the words are short).
-inline std::size_t edit_distance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diagonal = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t above = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = above;
-    }
-  }
-  return row[b.size()];
-}
-
 // The name of `names` nearest to `word` (one it starts, or at most two edits away and fewer than the word has
 // letters), or "".
 inline std::string nearest(const std::string& word, const std::vector<std::string>& names) {
   std::string best;
   std::size_t best_d = 3;
   for (const std::string& n : names) {
-    const std::size_t d = n.starts_with(word) ? 0 : edit_distance(word, n);
+    const std::size_t d = n.starts_with(word) ? 0 : edit_distance_below(word, n, best_d);
     if (d < best_d && d < word.size()) best = n, best_d = d;
   }
   return best;

@@ -1,6 +1,7 @@
 #include "scene/scene.hpp"
 
 #include "ladder/limits.hpp"
+#include "ladder/spelling.hpp"
 
 #include <toml++/toml.h>
 
@@ -244,37 +245,13 @@ std::string position(std::string_view source, const toml::source_position& p) {
   return std::string(source) + ":" + std::to_string(p.line) + ":" + std::to_string(p.column);
 }
 
-// Edit distance counting an adjacent transposition as one edit (optimal string alignment).
-// Optimal string alignment distance (edits and adjacent transpositions), with three rows of the table: a message is
-// built for every refused key, and a hostile file's key may be kilobytes long.
-size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<size_t> before(b.size() + 1), prev(b.size() + 1), cur(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    cur[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
-      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost});
-      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) cur[j] = std::min(cur[j], before[j - 2] + 1);
-    }
-    std::swap(before, prev);
-    std::swap(prev, cur);
-  }
-  return prev[b.size()];
-}
-
 // " (did you mean 'ladder.blocks'?)" for the nearest candidate within two edits, or "". A name without a table
 // is also compared with the candidates' last parts, so `blocks` at the top level suggests ladder.blocks.
 std::string did_you_mean(std::string_view name, const std::vector<std::string_view>& candidates) {
   const bool bare = name.find('.') == std::string_view::npos;
   std::string_view best;
   size_t best_distance = 3;
-  // Lengths that differ by best_distance or more cannot be nearer than that: a long name costs no table at all
-  // (measured: a 6 KB key in a fuzzed scene took 0.3 s against the full tables under ASan, and timed out under load).
-  const auto distance = [&](std::string_view c) {
-    const size_t gap = name.size() > c.size() ? name.size() - c.size() : c.size() - name.size();
-    return gap >= best_distance ? gap : edit_distance(name, c);
-  };
+  const auto distance = [&](std::string_view c) { return edit_distance_below(name, c, best_distance); };
   for (std::string_view c : candidates) {
     size_t d = distance(c);
     if (bare && c.find('.') != std::string_view::npos) d = std::min(d, distance(leaf_of(c)));
