@@ -48,7 +48,6 @@ struct Range {
   }
 };
 constexpr Range kAnyNumber{};
-constexpr Range above(double lo) { return {lo, kInf, true, false}; }
 constexpr Range at_least(double lo) { return {lo, kInf, false, false}; }
 constexpr Range between(double lo, double hi) { return {lo, hi, false, false}; }
 
