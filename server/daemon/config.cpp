@@ -102,7 +102,7 @@ const std::vector<Key>& keys() {
       number_key("commands.max_force", [](DaemonConfig& c, double v) { c.server.limits.max_force = v; }),
       number_key("commands.max_duration", [](DaemonConfig& c, double v) { c.server.limits.max_duration = v; }),
       number_key("commands.reach", [](DaemonConfig& c, double v) { c.server.limits.reach = v; }),
-      integer_key("commands.max_step_count", 1, 1'000'000'000,
+      integer_key("commands.max_step_count", 1, kWidestLimits.max_step_count,
                   [](DaemonConfig& c, long long v) { c.server.limits.max_step_count = static_cast<std::uint32_t>(v); }),
       {"server.security",
        [](const toml::node& n, DaemonConfig& c, const fs::path& d) {
@@ -166,10 +166,10 @@ void check_config(const DaemonConfig& c) {
   if (!(s.reader_wait >= 0 && s.reader_wait <= 3600))
     throw ConfigError("commands.reader_wait must be from 0 (do not wait) to 3600 s", "commands.reader_wait");
   positive(s.rate, 1e6, "commands.rate");
-  positive(s.limits.max_impulse, 1e6, "commands.max_impulse");
-  positive(s.limits.max_force, 1e9, "commands.max_force");
-  positive(s.limits.max_duration, 1e9, "commands.max_duration");
-  positive(s.limits.reach, 1e9, "commands.reach");
+  positive(s.limits.max_impulse, kWidestLimits.max_impulse, "commands.max_impulse");
+  positive(s.limits.max_force, kWidestLimits.max_force, "commands.max_force");
+  positive(s.limits.max_duration, kWidestLimits.max_duration, "commands.max_duration");
+  positive(s.limits.reach, kWidestLimits.reach, "commands.reach");
   static constexpr std::array levels{"trace", "debug", "info", "warn", "error", "off"};
   if (std::find(levels.begin(), levels.end(), c.log_level) == levels.end())
     throw ConfigError("log.level must be trace, debug, info, warn, error or off, not '" + c.log_level + "'", "log.level");

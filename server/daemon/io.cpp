@@ -282,13 +282,7 @@ void Io::write_outbox() {
   sh_.events_published.fetch_add(out_.events.size());
   for (const ladder_msg_Stats& s : out_.stats) written(stats_w_.try_write(s), "ladder/Stats");
   tick_log_.write(out_.ticks);
-  out_.ticks.clear();
-  out_.commands.clear();
-  out_.checkpoints.clear();
-  out_.scenes.clear();
-  out_.acks.clear();
-  out_.events.clear();
-  out_.stats.clear();
+  out_.clear();
 }
 
 void Io::write_state() {

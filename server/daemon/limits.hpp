@@ -17,6 +17,14 @@ struct Limits {
   std::uint32_t max_step_count = 100'000;  // one step command
 };
 
+// The widest bounds a configuration may set (ladderd.toml [commands]): what any ladderd can have accepted, and so
+// what a re-run of a session log (--resimulate, --resume) holds the logged commands to.
+constexpr Limits kWidestLimits{.max_impulse = 1e6,
+                               .max_force = 1e9,
+                               .max_duration = 1e9,
+                               .reach = 1e9,
+                               .max_step_count = 1'000'000'000};
+
 // The bounds of the rates, for `set` as for ladderd.toml and the command line. Below them the server would stop
 // publishing (at 1e-300 Hz the next state is due in 1e300 s) or the simulation would freeze (a real-time factor of
 // 1e-300 owes one step every 1e297 s). 1 Hz keeps a client's view of a running ladder at most a second old.

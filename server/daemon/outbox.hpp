@@ -78,10 +78,17 @@ struct Outbox {
   std::vector<AckOut> acks;
   std::vector<CommandOut> commands;       // only when recording
   std::vector<CheckpointOut> checkpoints;  // only when recording
+  std::vector<CheckpointOut> failures;     // only when recording: where a step failed (the session paused)
   std::vector<EventOut> events;
   std::vector<ladder_msg_Stats> stats;
   std::vector<SceneOut> scenes;
   std::vector<TickRecord> ticks;  // only with a tick log
+
+  // Empties every list and keeps their capacity (the two threads swap one Outbox to and fro).
+  void clear() {
+    acks.clear(), commands.clear(), checkpoints.clear(), failures.clear(), events.clear(), stats.clear();
+    scenes.clear(), ticks.clear();
+  }
 };
 
 // Shared between the two threads.

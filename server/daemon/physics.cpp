@@ -20,11 +20,24 @@ using transport::copy_text;
 using transport::printable;
 using transport::text_of;
 
-void Physics::checkpoint() {
+// Where the run stands, and the hash of its complete state.
+CheckpointOut Physics::place() const {
   const scene::Simulation& sim = session_.sim();
-  const CheckpointOut c{session_.generation(), sim.steps(), accepted_ + refused_, session_.state_hash(), sim.time()};
+  return {session_.generation(), sim.steps(), accepted_ + refused_, session_.state_hash(), sim.time()};
+}
+
+void Physics::checkpoint() {
+  const CheckpointOut c = place();
   with_outbox([&](Outbox& o) { o.checkpoints.push_back(c); });
-  next_checkpoint_ = sim.time() + sh_.config.checkpoint_every;
+  next_checkpoint_ = c.t + sh_.config.checkpoint_every;
+}
+
+// A failed step (or a state found non-finite) paused the session: the log says where, so that a re-run fails there
+// too and goes on as the session did (a reset then restores the scene's own settings; docs/recording.md).
+void Physics::record_failure() {
+  if (!recording_) return;
+  const CheckpointOut c = place();
+  with_outbox([&](Outbox& o) { o.failures.push_back(c); });
 }
 
 void Physics::push_scene() {
@@ -154,6 +167,9 @@ void Physics::idle_until(Clock::time_point deadline, const std::atomic<bool>& st
 
 void Physics::run_step() {
   if (interrupted_) return;  // (the stop cut the last step short: no more, and the loop ends at once)
+  // Checked before every step, not only at a tick's start: one tick may take thousands of steps (a real-time factor
+  // of 1000, or 0), and a log's reader allows a step at most two intervals past a checkpoint.
+  if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
   dirty_ = true;
   const auto t0 = Clock::now();
   try {
@@ -169,6 +185,7 @@ void Physics::run_step() {
     return;
   } catch (const std::runtime_error& e) {
     spdlog::error("step failed, simulation paused: {}", e.what());
+    record_failure();
     with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", e.what(), 0, 0}); });
     debt_ = 0;
   }
@@ -255,6 +272,7 @@ void Physics::publish_state() {
     // pauses, so that a reset restores the scene's own settings. Reported once, not at every command while paused.
     if (session_.failed()) return;
     session_.fail();
+    record_failure();
     const std::string why = "the state holds a non-finite number (" + bad + "): not published; paused";
     spdlog::error("step failed, simulation paused: {}", why);
     with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", why, 0, 0}); });

@@ -44,6 +44,8 @@ class Physics {
   void run_step();
   void push_scene();
   void checkpoint();
+  void record_failure();
+  CheckpointOut place() const;
   void log_tick(Clock::time_point start, Clock::duration late);
   void hand_over_ticks();
   void keep_watchdog(Clock::time_point now);

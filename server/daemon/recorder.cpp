@@ -56,7 +56,7 @@ void Recorder::record(const Outbox& out) {
     m.detail = e.detail;
     log_.write(transport::kEventChannel, now, m, false);
   }
-  for (const CheckpointOut& c : out.checkpoints) {
+  const auto place = [&](const char* channel, const CheckpointOut& c) {
     ladderlcm::checkpoint_t m;
     m.utime = now;
     m.generation = static_cast<std::int32_t>(c.generation);
@@ -64,8 +64,10 @@ void Recorder::record(const Outbox& out) {
     m.sim_time = c.t;
     m.commands_applied = static_cast<std::int64_t>(c.commands_applied);
     m.state_hash = static_cast<std::int64_t>(c.hash);
-    log_.write(transport::kCheckpointChannel, now, m, false);
-  }
+    log_.write(channel, now, m, false);
+  };
+  for (const CheckpointOut& c : out.checkpoints) place(transport::kCheckpointChannel, c);
+  for (const CheckpointOut& c : out.failures) place(transport::kFailureChannel, c);
 }
 
 void Recorder::record_state(const StateFrame& f, std::uint64_t seq) {

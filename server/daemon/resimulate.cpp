@@ -1,6 +1,7 @@
 #include "daemon/resimulate.hpp"
 
 #include "daemon/config.hpp"
+#include "daemon/frames.hpp"
 
 #include "transport/dds.hpp"
 #include "transport/lcm_log.hpp"
@@ -9,7 +10,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <limits>
 #include <map>
 #include <stdexcept>
 #include <tuple>
@@ -30,12 +30,6 @@ scene::Scene scene_of(const ladderlcm::scene_t& s) {
                              std::to_string(s.blocks) + " blocks, but its text makes " +
                              std::to_string(sc.ladder.blocks));
   return sc;
-}
-
-// No limits in a re-run: only commands the server accepted are applied, and they passed its limits then.
-Limits unlimited() {
-  constexpr double kBig = std::numeric_limits<double>::max();
-  return {kBig, kBig, kBig, kBig, std::numeric_limits<std::uint32_t>::max()};
 }
 
 std::string at(std::int64_t generation, std::int64_t step, double t) {
@@ -137,7 +131,7 @@ std::string check_step(const std::map<std::int32_t, GenerationInfo>& gens, const
 }
 
 struct Origins {
-  std::vector<Origin> scenes, commands, states, checkpoints;
+  std::vector<Origin> scenes, commands, states, checkpoints, failures;
 };
 
 // The checks across records (each record's own values were checked as it was decoded).
@@ -169,6 +163,11 @@ void check_session(const SessionLog& log, const Origins& at) {
     const ladderlcm::checkpoint_t& c = log.checkpoints[i];
     if (const auto why = check_step(gens, "checkpoint", c.generation, c.step, &c.sim_time); !why.empty())
       refuse(log, transport::kCheckpointChannel, at.checkpoints[i], why);
+  }
+  for (std::size_t i = 0; i < log.failures.size(); ++i) {
+    const ladderlcm::checkpoint_t& f = log.failures[i];
+    if (const auto why = check_step(gens, "failure", f.generation, f.step, &f.sim_time); !why.empty())
+      refuse(log, transport::kFailureChannel, at.failures[i], why);
   }
   for (std::size_t i = 0; i < log.states.size(); ++i) {
     const ladderlcm::state_t& s = log.states[i];
@@ -215,6 +214,9 @@ SessionLog read_events(transport::LogReader& reader) {
     } else if (e->channel == transport::kCheckpointChannel) {
       log.checkpoints.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
       at.checkpoints.push_back(o);
+    } else if (e->channel == transport::kFailureChannel) {
+      log.failures.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
+      at.failures.push_back(o);
     } else if (e->channel == transport::kEventChannel) {
       reader.decode<ladderlcm::event_t>(*e);  // not needed to re-run, but a log with a bad one is a bad log
       ++log.events;
@@ -243,7 +245,10 @@ SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std
 Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, Until until,
                         const std::function<void(std::uint64_t, std::uint64_t)>& progress) {
   Resimulation r;
-  session = std::make_unique<Session>(scene_of(log.scenes.front()), "", unlimited(), Rates{});
+  // Only commands the server accepted are applied, and they passed its limits then; which limits those were the
+  // log does not say, so a re-run holds them to the widest any configuration allows: a logged poke of 1e300 N s,
+  // which no ladderd accepts, is refused here rather than made into a state nobody can publish.
+  session = std::make_unique<Session>(scene_of(log.scenes.front()), "", kWidestLimits, Rates{});
   std::size_t next_command = 0;
   std::int64_t applied = 0;  // commands taken, as the server counted them
 
@@ -297,51 +302,105 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     }
   };
 
-  // States and checkpoints in the order the run passed them (the log may interleave them differently: the two
-  // reach the recorder by different paths); at the same place a checkpoint comes first.
+  // States, checkpoints and failures in the order the run passed them (the log may interleave them differently:
+  // they reach the recorder by different paths). At one place a checkpoint comes first, then states, then a failure;
+  // but a failed step may leave the state inside the step (its last part the watchdog accepted), and a state or
+  // checkpoint at the same place may then have been taken after the failure: one that differs is compared again
+  // after it.
+  enum Kind { kCheckpointMark, kStateMark, kFailureMark };
   struct Mark {
     std::int32_t generation;
     std::int64_t step, commands;
-    bool is_state;
+    Kind kind;
     std::size_t index;
   };
   std::vector<Mark> marks;
   for (std::size_t i = 0; i < log.checkpoints.size(); ++i) {
     const auto& c = log.checkpoints[i];
-    marks.push_back({c.generation, c.step, c.commands_applied, false, i});
+    marks.push_back({c.generation, c.step, c.commands_applied, kCheckpointMark, i});
   }
   for (std::size_t i = 0; i < log.states.size(); ++i) {
     const auto& st = log.states[i];
-    marks.push_back({st.generation, st.step, st.commands_applied, true, i});
+    marks.push_back({st.generation, st.step, st.commands_applied, kStateMark, i});
+  }
+  for (std::size_t i = 0; i < log.failures.size(); ++i) {
+    const auto& f = log.failures[i];
+    marks.push_back({f.generation, f.step, f.commands_applied, kFailureMark, i});
   }
   std::stable_sort(marks.begin(), marks.end(), [](const Mark& a, const Mark& b) {
-    return std::tie(a.generation, a.step, a.commands, a.is_state) < std::tie(b.generation, b.step, b.commands, b.is_state);
+    return std::tie(a.generation, a.step, a.commands, a.kind) < std::tie(b.generation, b.step, b.commands, b.kind);
   });
-  for (const Mark& m : marks) {
-    const double t = m.is_state ? log.states[m.index].sim_time : log.checkpoints[m.index].sim_time;
-    if (!reach(m.generation, m.step, m.commands)) {
-      r.identical = false;
-      r.difference = "could not reach the recorded " + std::string(m.is_state ? "state" : "checkpoint") + " at " +
-                     at(m.generation, m.step, t) + " with " + std::to_string(m.commands) + " commands taken";
-      break;
+  const auto time_of = [&](const Mark& m) {
+    return m.kind == kStateMark ? log.states[m.index].sim_time
+           : m.kind == kCheckpointMark ? log.checkpoints[m.index].sim_time
+                                       : log.failures[m.index].sim_time;
+  };
+  // A state or checkpoint: the first difference from the re-run's, or "".
+  const auto differs = [&](const Mark& m) -> std::string {
+    if (m.kind == kStateMark) {
+      const std::string d = compare(log.states[m.index], *session);
+      return d.empty() ? d : at(m.generation, m.step, time_of(m)) + ": " + d;
     }
-    if (m.is_state) {
-      if (const std::string d = compare(log.states[m.index], *session); !d.empty()) {
-        r.identical = false;
-        r.difference = at(m.generation, m.step, t) + ": " + d;
-        break;
+    if (static_cast<std::int64_t>(session->state_hash()) == log.checkpoints[m.index].state_hash) return {};
+    return "the complete state at " + at(m.generation, m.step, time_of(m)) +
+           " differs from the recorded one (checkpoint hash)";
+  };
+  // A recorded failure: the server found the state non-finite and paused, or its next step failed (and it paused
+  // at the state the step's watchdog left). The re-run does the same, and must end where the server did.
+  std::vector<bool> failed(log.failures.size(), false);
+  const auto fail_as_recorded = [&](const Mark& m) -> std::string {
+    failed[m.index] = true;
+    StateFrame frame;
+    fill_frame(*session, 0, frame);
+    if (!non_finite_in(frame).empty()) {
+      session->fail();
+    } else {
+      if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
+      try {
+        session->step();
+        ++r.steps;
+        return "the step at " + at(m.generation, m.step, time_of(m)) + " failed live, and not in the re-run";
+      } catch (const std::runtime_error&) {  // as it did live: the session paused itself
       }
-      ++r.states;
-      continue;
     }
-    if (static_cast<std::int64_t>(session->state_hash()) != log.checkpoints[m.index].state_hash) {
+    if (static_cast<std::int64_t>(session->state_hash()) != log.failures[m.index].state_hash)
+      return "the state the failed step at " + at(m.generation, m.step, time_of(m)) +
+             " left differs from the recorded one (failure hash)";
+    ++r.failures;
+    return {};
+  };
+  const auto same_place = [](const Mark& a, const Mark& b) {
+    return a.generation == b.generation && a.step == b.step && a.commands == b.commands;
+  };
+  for (std::size_t k = 0; k < marks.size() && r.identical; ++k) {
+    const Mark& m = marks[k];
+    if (m.kind == kFailureMark && failed[m.index]) continue;  // met early, below
+    if (!reach(m.generation, m.step, m.commands)) {
+      static const char* kWhat[] = {"checkpoint", "state", "failure"};
       r.identical = false;
-      r.difference = "the complete state at " + at(m.generation, m.step, t) +
-                     " differs from the recorded one (checkpoint hash)";
+      r.difference = "could not reach the recorded " + std::string(kWhat[m.kind]) + " at " +
+                     at(m.generation, m.step, time_of(m)) + " with " + std::to_string(m.commands) + " commands taken";
       break;
     }
-    ++r.checkpoints;
-    r.commands_after_checkpoint = 0;
+    std::string d = m.kind == kFailureMark ? fail_as_recorded(m) : differs(m);
+    if (!d.empty() && m.kind != kFailureMark) {
+      for (std::size_t j = k + 1; j < marks.size() && same_place(marks[j], m); ++j)
+        if (marks[j].kind == kFailureMark && !failed[marks[j].index]) {
+          if (const std::string e = fail_as_recorded(marks[j]); !e.empty()) d = e;
+          else d = differs(m);
+          break;
+        }
+    }
+    if (!d.empty()) {
+      r.identical = false;
+      r.difference = d;
+      break;
+    }
+    if (m.kind == kStateMark) ++r.states;
+    if (m.kind == kCheckpointMark) {
+      ++r.checkpoints;
+      r.commands_after_checkpoint = 0;
+    }
   }
   // On past the last state or checkpoint: each command at its recorded place (only a command leads to another
   // generation, and every step taken lies before a recorded command, so this too ends).

@@ -3,7 +3,7 @@
 //
 // A log holds the scene as it was started, every command as the simulation took it (with the generation and step
 // at which it was applied and its place in the server's order), every published state and periodic checkpoints
-// (hashes of the complete dynamic state). Runs are deterministic, so applying the same commands at the same steps
+// (hashes of the complete dynamic state), and where a step failed. Runs are deterministic, so applying the same commands at the same steps
 // from the same scene reproduces every state exactly; the re-run compares each recorded state and checkpoint.
 #pragma once
 
@@ -29,6 +29,7 @@ struct SessionLog {
   std::vector<ladderlcm::command_t> commands;      // in log order, which is command_seq's (checked)
   std::vector<ladderlcm::state_t> states;          // in log order
   std::vector<ladderlcm::checkpoint_t> checkpoints;
+  std::vector<ladderlcm::checkpoint_t> failures;   // where a step failed and the session paused itself
   std::uint64_t events = 0;                        // event records (not needed to re-run)
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
 };
@@ -47,6 +48,7 @@ struct Resimulation {
   bool identical = true;
   std::string difference;  // the first difference, with its generation, step and what differs
   std::uint64_t steps = 0, states = 0, checkpoints = 0, commands = 0;
+  std::uint64_t failures = 0;  // recorded failures the re-run met alike (the step failed, the same state left)
   std::uint64_t accepted = 0, refused = 0;   // of the commands applied, as the server answered them
   std::uint64_t commands_after_checkpoint = 0;  // commands applied after the last checkpoint passed
   std::uint64_t last_command_seq = 0;           // the command_seq of the last command applied

@@ -2,6 +2,7 @@
 
 #include "daemon/builtin_scene.hpp"
 #include "daemon/fatal.hpp"
+#include "daemon/frames.hpp"
 #include "daemon/resimulate.hpp"
 
 #include <spdlog/sinks/basic_file_sink.h>
@@ -118,8 +119,20 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
   // To the end of what was recorded: the last checkpoint, the states after it (checked), and every command after
   // it, so that each command the killed server acknowledged (logged before its ack went out) is applied again.
   std::unique_ptr<Session> session;
-  const Resimulation r = resimulate(log, session, Until::kLastCommand);
+  Resimulation r;
+  try {
+    r = resimulate(log, session, Until::kLastCommand);
+  } catch (const std::runtime_error& e) {  // a command the re-run refuses, a scene it lacks
+    throw std::runtime_error(path + ": " + e.what());
+  }
   if (!r.identical) throw std::runtime_error(path + ": the re-run differs from the log: " + r.difference);
+  // A server publishes no State that holds a non-finite number, and a client finds a server by its State: one
+  // resumed in such a state could be reached by nobody, not even to reset it.
+  StateFrame frame;
+  fill_frame(*session, 0, frame);
+  if (const std::string bad = non_finite_in(frame); !bad.empty())
+    throw std::runtime_error(path + ": the session ends in a state that holds a non-finite number (" + bad +
+                             "), which no server can publish; start the scene anew");
   session->pause();
   session->sim().take_events();  // they happened before; the log has them
   session->sim().take_refusals();
@@ -155,9 +168,12 @@ int run_resimulation(const std::string& path, bool progress) {
     return exit_with(1, fmt::format("differs: {} ({} states and {} checkpoints identical before it)", r.difference,
                                     r.states, r.checkpoints));
   }
-  spdlog::info("identical to the last bit: {} states and {} checkpoints compared over {} steps ({} commands), up "
+  spdlog::info("identical to the last bit: {} states and {} checkpoints compared over {} steps ({} commands{}), up "
                "to t = {:.6f} s",
-               r.states, r.checkpoints, r.steps, r.commands, r.sim_time);
+               r.states, r.checkpoints, r.steps, r.commands,
+               r.failures ? fmt::format("; {} failed step{} failed alike", r.failures, r.failures == 1 ? "" : "s")
+                          : std::string(),
+               r.sim_time);
   return 0;
 }
 

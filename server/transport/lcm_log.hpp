@@ -27,6 +27,8 @@ inline constexpr const char* kStateChannel = "LADDER_STATE";
 inline constexpr const char* kEventChannel = "LADDER_EVENT";
 inline constexpr const char* kCommandChannel = "LADDER_COMMAND";
 inline constexpr const char* kCheckpointChannel = "LADDER_CHECKPOINT";
+// A step that failed (the session paused itself), as a checkpoint_t: where, and the hash of the state it was left at.
+inline constexpr const char* kFailureChannel = "LADDER_FAILURE";
 
 std::int64_t now_us();  // wall time [us since the epoch], the LCM convention
 

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <functional>
 #include <random>
+#include <tuple>
 
 namespace ladder::test {
 namespace {
@@ -69,6 +70,15 @@ class Record : public ::testing::Test {
     server_->signal(sig);
     const auto status = server_->wait_exit(Millis(5000));
     return status && WIFEXITED(*status) ? WEXITSTATUS(*status) : -1;
+  }
+  // After the server stopped: another, resumed from the log (under a sim id of its own), and its first state,
+  // which is paused.
+  std::optional<client::State> resume_from_log() {
+    server_.reset();
+    client_.reset();
+    sim_id_ += "-resumed";
+    start({"--resume", log_});
+    return client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
   }
   // Records a session of the built-in scene with these options, and draws it live and replayed (below).
   void replay_draws_what_the_live_server_drew(const std::vector<std::string>& scene);
@@ -209,11 +219,7 @@ TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
 
-  server_.reset();
-  client_.reset();
-  sim_id_ += "-resumed";
-  start({"--resume", log_});
-  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  const auto s = resume_from_log();
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->step, static_cast<std::uint64_t>(last->step));
   EXPECT_EQ(s->sim_time, last->sim_time);
@@ -336,11 +342,7 @@ TEST_F(Record, ResumeAfterKillNineGoesOnInTheGenerationOfTheLastReset) {
   const std::uint64_t last_acked = applied_;
   ASSERT_EQ(last_acked, 5u);
 
-  server_.reset();
-  client_.reset();
-  sim_id_ += "-resumed";
-  start({"--resume", log_});
-  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  const auto s = resume_from_log();
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->generation, 1u);
   EXPECT_EQ(s->commands_applied, last_acked);
@@ -716,13 +718,9 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   const auto after = std::count_if(log.commands.begin(), log.commands.end(),
                                    [&](const ladderlcm::command_t& c) { return c.command_seq > at_checkpoint; });
 
-  server_.reset();
-  client_.reset();
-  sim_id_ += "-resumed";
-  start({"--resume", log_});
   EXPECT_GT(after, 0);
   EXPECT_LT(after, 31);
-  const auto s = client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer);
+  const auto s = resume_from_log();
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->commands_applied, last_acked);
   const auto info = client_->wait_scene_info(kAnswer);
@@ -738,6 +736,105 @@ TEST_F(Record, ResumeAfterKillNineKeepsEveryAcknowledgedCommand) {
   const client::Ack a = client_->call(cmd::resume(), kAnswer);
   EXPECT_TRUE(a.accepted) << a.reason;
   EXPECT_EQ(a.command_seq, last_acked + 1);
+}
+
+// One tick may take thousands of steps (here 10 s of sim time: 100 ticks a second at a real-time factor of 1000):
+// the server still writes a checkpoint every simulated second, before the step that passes it, so the log's
+// checkpoints lie at most a second and a step apart and the log re-runs. (Before, it took at most one a tick: its
+// checkpoints lay 10 s apart, and both readers refused the log, whose steps lay too far past a checkpoint.)
+TEST_F(Record, ALogRecordedAtAThousandTimesRealTimeHasACheckpointEverySecondAndReRuns) {
+  start({"--record", log_, "--rate", "100", "--rtf", "1000"});
+  run_until(30);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const daemon::SessionLog log = daemon::read_session_log(log_);
+  ASSERT_GE(log.checkpoints.size(), 30u);
+  for (std::size_t i = 1; i < log.checkpoints.size(); ++i)
+    EXPECT_LE(log.checkpoints[i].sim_time - log.checkpoints[i - 1].sim_time, 1.0 + 0.001 + 1e-9) << "checkpoint " << i;
+  const Result r = shell(kLadderd + " --offline --resimulate " + log_);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
+}
+
+// A step that fails pauses the session, and a reset then restarts the scene with its own settings (the live ones
+// made it fail). The log says where the step failed, so the re-run takes that step too, fails alike and goes on as
+// the session did: the reset restores the scene's settings and the resume is accepted; --resume serves the last
+// state. Without the failure's record the re-run refuses the resume ("not paused"), as both readers did before.
+TEST_F(Record, AFailedStepAndTheResetAfterItReRunAndResume) {
+  start({"--record", log_});
+  accepted(cmd::set("sim.integrator=euler"));
+  accepted(cmd::set("sim.dt=0.1"));
+  accepted(cmd::set("sim.gravity=[1000,0]"));
+  ASSERT_TRUE(client_->wait_state(
+      [&](const client::State& s) { return s.commands_applied >= applied_ && s.paused; }, Millis(20000)))
+      << server_->log();
+  const client::Ack reset = client_->call(cmd::reset(), kAnswer);
+  ASSERT_TRUE(reset.accepted) << reset.reason;
+  EXPECT_NE(reset.reason.find("the scene restarted with its own settings"), std::string::npos) << reset.reason;
+  applied_ = reset.command_seq;
+  accepted(cmd::resume());
+  run_until(0.5);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+
+  const daemon::SessionLog log = daemon::read_session_log(log_);
+  ASSERT_EQ(log.failures.size(), 1u);
+  EXPECT_EQ(log.failures[0].generation, 0);
+  EXPECT_EQ(log.failures[0].commands_applied, 3);
+  Result r = shell(kLadderd + " --offline --resimulate " + log_);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("(5 commands; 1 failed step failed alike)"), std::string::npos) << r.output;
+
+  const std::string without = (dir_ / "without.lcmlog").string();
+  {
+    transport::LogReader in(log_);
+    transport::LogWriter out(without);
+    while (auto e = in.next())
+      if (e->channel != transport::kFailureChannel) out.write_bytes(e->channel, e->utime, e->data, false);
+  }
+  r = shell(kLadderd + " --offline --resimulate " + without);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("command 5 (resume), accepted live, is refused in the re-run: not paused"), std::string::npos)
+      << r.output;
+
+  const auto last = std::max_element(log.states.begin(), log.states.end(), [](const auto& a, const auto& b) {
+    return std::tie(a.generation, a.step) < std::tie(b.generation, b.step);
+  });
+  ASSERT_NE(last, log.states.end());
+  const auto s = resume_from_log();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->sim_time, last->sim_time);
+  EXPECT_EQ(s->commands_applied, 5u);
+}
+
+// A re-run holds the logged commands to the widest limits a configuration allows (ladderd.toml [commands]): a
+// poke of 1e300 N s written into a log as accepted, which no ladderd accepts, is refused by --resume, naming the
+// command and the limit. (Before, the re-run applied it: the resumed state held an infinite energy, so the server
+// published no State, and no client could find it, not even to reset it.)
+TEST_F(Record, AResumedLogIsHeldToTheWidestLimitsAConfigurationAllows) {
+  start({"--record", log_});
+  accepted(cmd::poke(3, 0.002, 0));
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const std::string bad = (dir_ / "poke.lcmlog").string();
+  {
+    transport::LogReader in(log_);
+    transport::LogWriter out(bad);
+    while (auto e = in.next()) {
+      if (e->channel == transport::kCommandChannel) {
+        auto c = in.decode<ladderlcm::command_t>(*e);
+        c.a = 1e300;
+        out.write(transport::kCommandChannel, e->utime, c, false);
+        continue;
+      }
+      out.write_bytes(e->channel, e->utime, e->data, false);
+    }
+  }
+  const Result r = shell("timeout -s KILL 20 " + kLadderd + " --domain " + std::to_string(domain_) + " --sim-id " +
+                         sim_id_ + "-bad --resume " + bad);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find(bad + ": command 1 (poke), accepted live, is refused in the re-run: the impulse of 1e+300 "
+                                "N s is beyond the limit of 1e+06 N s (commands.max_impulse)"),
+            std::string::npos)
+      << r.output;
 }
 
 }  // namespace
