@@ -667,7 +667,14 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   }
   if (conn.domain != before.domain || conn.sim_id != before.sim_id || conn.security != before.security)
     client.reset();
-  if (standalone) return standalone(conn);
+  if (standalone) {
+    try {
+      return standalone(conn);  // list, replay, plot: their own participants
+    } catch (const transport::DdsError& e) {
+      std::cerr << (interactive ? "" : "ladderctl: ") << e.what() << "\n";
+      return kUsage;
+    }
+  }
   if (!action) return kNoCommand;
   if (const int code = make_client(conn, client); code != kAccepted) return code;
   Client* c = connect(conn, client);

@@ -6,7 +6,9 @@
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <string>
+#include <utility>
 
 namespace ladder::transport {
 
@@ -21,6 +23,8 @@ struct CycloneLog {
   void (*sink)(const char*) = nullptr;
   std::string topic;  // whose undecodable samples are counted
   std::atomic<std::uint64_t> undecodable{0};
+  std::mutex mutex;
+  std::string last_error;  // Cyclone's last error line, for a message of ours that says why a call failed
 };
 CycloneLog g_cyclone_log;
 
@@ -34,7 +38,26 @@ void on_cyclone_log(void*, const dds_log_data_t* d) {
   while (!line.empty() && (line.back() == '\n' || line.back() == ' ')) line.pop_back();
   if (line.find("deserialization " + g_cyclone_log.topic + "/") != std::string::npos)
     g_cyclone_log.undecodable.fetch_add(1, std::memory_order_relaxed);
+  if ((d->priority & (DDS_LC_ERROR | DDS_LC_FATAL)) != 0 && !line.empty()) {
+    const std::lock_guard lock(g_cyclone_log.mutex);
+    g_cyclone_log.last_error = line;
+  }
   if (g_cyclone_log.sink != nullptr && !line.empty()) g_cyclone_log.sink(line.c_str());
+}
+
+std::string take_last_error() {
+  const std::lock_guard lock(g_cyclone_log.mutex);
+  return std::exchange(g_cyclone_log.last_error, {});
+}
+
+// Why a participant could not be made, from Cyclone's error line when its log comes here (route_cyclone_log).
+std::string participant_failure(dds_domainid_t domain, const std::string& reason) {
+  const std::string what = "create DDS participant on domain " + std::to_string(domain);
+  if (reason.find("free participant index") != std::string::npos)
+    return what + " (Cyclone: \"" + reason + "\": this host already has as many participants on the domain as the "
+           "configuration allows, 64 with the shipped one; stop some clients or servers, or use another domain)";
+  if (!reason.empty()) return what + " (Cyclone: \"" + reason + "\"; is CYCLONEDDS_URI a readable, valid configuration?)";
+  return what + " (is CYCLONEDDS_URI a readable, valid configuration? Cyclone's reason is logged above)";
 }
 
 using MatchedFn = dds_return_t (*)(dds_entity_t, dds_instance_handle_t*, size_t);
@@ -142,10 +165,12 @@ void apply_profile(Qos& qos, Profile p, Side side) {
 
 Entity make_participant(dds_domainid_t domain, const Identity* identity) {
   if (identity == nullptr) identity = default_identity();
-  if (identity == nullptr)
-    return Entity(check(dds_create_participant(domain, nullptr, nullptr),
-                        "create DDS participant on domain " + std::to_string(domain) +
-                            " (is CYCLONEDDS_URI a readable, valid configuration? Cyclone's reason is logged above)"));
+  if (identity == nullptr) {
+    take_last_error();
+    const dds_entity_t p = dds_create_participant(domain, nullptr, nullptr);
+    if (p < 0) throw DdsError(participant_failure(domain, take_last_error()), p);
+    return Entity(p);
+  }
   Qos q;
   apply_security(q, *identity);
   return Entity(check(dds_create_participant(domain, q.get(), nullptr),

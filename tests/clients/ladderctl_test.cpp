@@ -12,6 +12,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <regex>
@@ -119,6 +120,37 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
   EXPECT_LT(status.output.find("  damping.linear=0\n"), fixed);
   for (const char* key : {"  ladder.depth=", "  ladder.hinge=corner\n", "  ladder.end_radius=0\n"})
     EXPECT_GT(status.output.find(key), fixed) << key << " in\n" << status.output;
+}
+
+// A domain with no room left on this host (here a configuration that allows one participant index, 0, which the
+// server or this test's client holds): a command, `list` (which makes participants of its own) and `watch` each say
+// so and why, and exit 2. (`list` and `replay` ended in an uncaught exception, exit 134, and every program blamed
+// CYCLONEDDS_URI, with Cyclone's own reason only on the line above.)
+TEST_F(Ladderctl, AFullDomainIsSaidToBeFull) {
+  client::Client holder(domain_, sim_id_, "holder");
+  ASSERT_TRUE(holder.wait_for_server(std::chrono::milliseconds(15000)));
+  const std::string xml = std::string(LADDER_BINARY_DIR) + "/tests/ctl-full-" + std::to_string(getpid()) + ".xml";
+  {
+    std::ifstream in(std::string(LADDER_SOURCE_DIR) + "/config/cyclonedds.xml");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string t = text.str();
+    const std::string max = "<MaxAutoParticipantIndex>64</MaxAutoParticipantIndex>";
+    ASSERT_NE(t.find(max), std::string::npos);
+    t.replace(t.find(max), max.size(), "<MaxAutoParticipantIndex>0</MaxAutoParticipantIndex>");
+    std::ofstream(xml) << t;
+  }
+  for (const char* args : {"status", "list", "watch events"}) {
+    const Result r = shell("CYCLONEDDS_URI=file://" + xml + " " + kLadderctl + " " + args + where_);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("ladderctl: create DDS participant on domain " + std::to_string(domain_) +
+                            " (Cyclone: \"Failed to find a free participant index for domain " +
+                            std::to_string(domain_) + "\": this host already has as many participants on the domain "
+                            "as the configuration allows"),
+              std::string::npos)
+        << args << "\n" << r.output;
+  }
+  std::filesystem::remove(xml);
 }
 
 TEST_F(Ladderctl, NoServerGivesTheTimeoutMessageAndCodeThree) {
