@@ -29,6 +29,19 @@ const std::string kLadderctl = std::string(LADDER_BINARY_DIR) + "/clients/ladder
 
 Result run(const std::string& args) { return shell(kLadderctl + " " + args); }
 
+// Writes the shipped loopback configuration (config/cyclonedds.xml) to `path` with `from` replaced by `to`; false
+// when `from` is not in it.
+bool write_config_with(const std::string& path, const std::string& from, const std::string& to) {
+  std::ifstream in(std::string(LADDER_SOURCE_DIR) + "/config/cyclonedds.xml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string xml = text.str();
+  const std::size_t at = xml.find(from);
+  if (at == std::string::npos) return false;
+  std::ofstream(path) << xml.replace(at, from.size(), to);
+  return true;
+}
+
 class Ladderctl : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -130,16 +143,8 @@ TEST_F(Ladderctl, AFullDomainIsSaidToBeFull) {
   client::Client holder(domain_, sim_id_, "holder");
   ASSERT_TRUE(holder.wait_for_server(std::chrono::milliseconds(15000)));
   const std::string xml = std::string(LADDER_BINARY_DIR) + "/tests/ctl-full-" + std::to_string(getpid()) + ".xml";
-  {
-    std::ifstream in(std::string(LADDER_SOURCE_DIR) + "/config/cyclonedds.xml");
-    std::stringstream text;
-    text << in.rdbuf();
-    std::string t = text.str();
-    const std::string max = "<MaxAutoParticipantIndex>64</MaxAutoParticipantIndex>";
-    ASSERT_NE(t.find(max), std::string::npos);
-    t.replace(t.find(max), max.size(), "<MaxAutoParticipantIndex>0</MaxAutoParticipantIndex>");
-    std::ofstream(xml) << t;
-  }
+  ASSERT_TRUE(write_config_with(xml, "<MaxAutoParticipantIndex>64</MaxAutoParticipantIndex>",
+                                "<MaxAutoParticipantIndex>0</MaxAutoParticipantIndex>"));
   for (const char* args : {"status", "list", "watch events"}) {
     const Result r = shell("CYCLONEDDS_URI=file://" + xml + " " + kLadderctl + " " + args + where_);
     EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
@@ -309,16 +314,7 @@ TEST_F(Ladderctl, WatchEventsSaysHowManyEventsItMissed) {
 TEST_F(Ladderctl, WatchEventsSaysWhatItMissedWhenNoEventFollows) {
   ASSERT_EQ(ctl("pause").code, 0);
   const std::string base = std::string(LADDER_BINARY_DIR) + "/tests/ctl-tail-" + std::to_string(getpid());
-  {
-    std::ifstream in(std::string(LADDER_SOURCE_DIR) + "/config/cyclonedds.xml");
-    std::stringstream xml;
-    xml << in.rdbuf();
-    std::string text = xml.str();
-    const std::string at = "</Discovery>";
-    ASSERT_NE(text.find(at), std::string::npos);
-    text.insert(text.find(at), "<LeaseDuration>1s</LeaseDuration>");
-    std::ofstream(base + ".xml") << text;
-  }
+  ASSERT_TRUE(write_config_with(base + ".xml", "</Discovery>", "<LeaseDuration>1s</LeaseDuration></Discovery>"));
   Process watcher({"/usr/bin/env", "CYCLONEDDS_URI=file://" + base + ".xml", kLadderctl, "watch", "events", "--json",
                    "--domain", std::to_string(domain_), "--sim-id", sim_id_, "--timeout", "15"},
                   base + ".txt");
