@@ -160,6 +160,11 @@ std::vector<std::string> heading(const Options& o, const Feed& feed, const clien
   const char* quiet = feed.info()->replay ? "  (the replay has sent nothing for a while: ended or stopped?)"
                                           : "  (waiting for ladderd: no news for a while)";
   std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? quiet : "")};
+  if (feed.info()->replay) {  // it takes no commands: nothing to tip it with
+    const std::string replay = "a replay of a recorded session (ladderctl replay): it takes no commands";
+    out.push_back(!keys ? replay : answer.empty() ? replay + "; q quits" : answer);
+    return out;
+  }
   const std::string elsewhere =
       "from another terminal: ladderctl --sim-id " + o.sim_id + " --domain " + std::to_string(o.domain) + " tip";
   if (keys) {

@@ -187,7 +187,7 @@ void print_event(const client::Event& e, bool json) {
     j.field("energy_removed", e.energy_removed).field("detail", e.detail);
     std::printf("%s\n", j.done().c_str());
   } else {
-    std::printf("t = %9.4f s  %-15s hinge %-3d energy removed %.3g J%s%s\n", e.t, e.kind.c_str(), e.hinge,
+    std::printf("t = %9s s  %-15s hinge %-3d energy removed %.3g J%s%s\n", client::fixed(e.t, 4).c_str(), e.kind.c_str(), e.hinge,
                 e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
   }
 }
@@ -238,8 +238,9 @@ void print_state(const client::State& s, bool json) {
   }
   std::string flips;
   for (std::size_t k = 1; k < s.hinges.size() && k <= 16; ++k) flips += std::to_string(s.hinges[k].flips) + " ";
-  std::printf("t = %9.4f s  step %-8llu %s energy %.6f J  flips per hinge: %s%s\n", s.sim_time,
-              static_cast<unsigned long long>(s.step), s.paused ? "paused " : "", s.energy, flips.c_str(),
+  std::printf("t = %9s s  step %-8llu %s energy %s J  flips per hinge: %s%s\n", client::fixed(s.sim_time, 4).c_str(),
+              static_cast<unsigned long long>(s.step), s.paused ? "paused " : "", client::fixed(s.energy, 6).c_str(),
+              flips.c_str(),
               s.hinges.size() > 17 ? "..." : "");
 }
 
@@ -363,10 +364,11 @@ int status(Client& client, const Connection& c) {
     return kNoServer;
   }
   std::printf("server %s, sim id '%s' on DDS domain %d\n", info->server_version.c_str(), c.sim_id.c_str(), c.domain);
-  std::printf("scene '%s': %u blocks of %.0f x %.0f mm, top block %s\n", info->scene_name.c_str(), info->blocks,
+  std::printf("scene '%s': %u blocks of %.4g x %.4g mm, top block %s\n", info->scene_name.c_str(), info->blocks,
               info->length * 1e3, info->thickness * 1e3, info->top.c_str());
-  std::printf("sim time %.3f s, step %llu, %s, energy %.6f J\n", state->sim_time,
-              static_cast<unsigned long long>(state->step), state->paused ? "paused" : "running", state->energy);
+  std::printf("sim time %s s, step %llu, %s, energy %s J\n", client::fixed(state->sim_time, 3).c_str(),
+              static_cast<unsigned long long>(state->step), state->paused ? "paused" : "running",
+              client::fixed(state->energy, 6).c_str());
   if (info->replay)
     std::printf("a replay of a recorded session (ladderctl replay): it takes no commands\n");
   else

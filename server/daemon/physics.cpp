@@ -110,7 +110,8 @@ void Physics::take_commands() {
             std::tie(scene_rates_.publish, scene_rates_.real_time_factor)) {
       if (restarted) {
         debt_ = 0;
-        spdlog::info("scene '{}' started ({} blocks)", session_.sim().scene().name, session_.sim().ladder().blocks());
+        spdlog::info("scene '{}' started ({} blocks)", printable(session_.sim().scene().name),
+                     session_.sim().ladder().blocks());
       }
       push_scene();
     }

@@ -299,8 +299,11 @@ Outcome Session::set_param(const std::string& full) {
 std::string scene_names(const std::string& dir) {
   std::vector<std::string> stems;
   std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
-    if (entry.path().extension() == ".toml") stems.push_back(entry.path().stem().string());
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    std::error_code kind;  // (a regular file, or a link to one: what `load` and --scene take)
+    if (entry.path().extension() == ".toml" && entry.is_regular_file(kind))
+      stems.push_back(entry.path().stem().string());
+  }
   std::sort(stems.begin(), stems.end());
   std::string names;
   for (const std::string& s : stems) names += (names.empty() ? "" : ", ") + s;
@@ -315,6 +318,9 @@ Outcome Session::load(const std::string& name) {
   const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
+    if (fs::exists(path, ec))  // a folder, a pipe, a device: never read (a pipe would hold the loop up)
+      return {false, "'" + path.filename().native() + "' in " + scenes_dir_ +
+                         " is not a regular file (a scene is a .toml file)"};
     return {false, "no scene '" + name + "' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
   }
   try {

@@ -10,6 +10,7 @@
 #include "process.hpp"
 #include "pty.hpp"
 #include "rounded.hpp"
+#include "transport/default_config.hpp"
 #include "transport/dds.hpp"
 #include "transport/topics.hpp"
 
@@ -989,6 +990,7 @@ TEST(ForgedPeer, TextIsMadePrintableAndAStateThatIsNotFiniteIsNotTaken) {
   const std::string name = "ForgedPeer.TextIsMadePrintable";
   const int domain = domain_for(name);
   const std::string id = sim_id_for(name);
+  transport::use_default_config(transport::kDefaultCycloneConfig);  // the programs' loopback configuration (below)
   const transport::Entity participant = transport::make_participant(static_cast<dds_domainid_t>(domain));
   const transport::Topics topics(participant);
   const transport::Writer<ladder_msg_State> state_w(participant, topics.state, transport::Profile::State);
@@ -1053,9 +1055,23 @@ TEST(ForgedPeer, TextIsMadePrintableAndAStateThatIsNotFiniteIsNotTaken) {
   refused(7, [&](ladder_msg_State& m) { transport::lend(m.grips, grip); });
   st.seq = 8;
   st.sim_time = 1e300;  // finite and not negative: taken (the texts print it in %g beyond 1e9 s)
+  st.energy = 1.7e308;
   transport::lend_blocks(st, poses, corner, status, flips);
   state_w.write(st);
   EXPECT_TRUE(eventually([&] { return c.poll(), c.latest_state()->seq == 8; }, kStart));
+
+  // With a server's command reader and ack and event writers, ladderctl takes the peer for its server: `status`
+  // prints the huge figures in %g (it printed them with %f, 300 digits each) and the 0.1 mm thick blocks as such
+  // (they were "64 x 0 mm").
+  info.thickness = 1e-4;
+  scene_w.write(info);
+  const transport::Reader<ladder_msg_Command> command_r(participant, topics.command, transport::Profile::Command);
+  const transport::Writer<ladder_msg_CommandAck> ack_w(participant, topics.ack, transport::Profile::CommandAck);
+  const transport::Writer<ladder_msg_Event> event_w(participant, topics.event, transport::Profile::Event);
+  const Result r = shell(kBin + "/clients/ladderctl status --domain " + std::to_string(domain) + " --sim-id " + id);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("2 blocks of 64 x 0.1 mm"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sim time 1e+300 s, step 0, running, energy 1.7e+308 J\n"), std::string::npos) << r.output;
 }
 
 // An X server of our own for the window; the screen is an XWD file we can read at any time.

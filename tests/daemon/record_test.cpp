@@ -282,6 +282,14 @@ TEST_F(Record, ACommandToAReplaySaysItIsOne) {
                           " is a replay of a recorded session (ladderctl replay), which takes no commands"),
             std::string::npos)
       << r.output;
+  // The terminal view says so too, instead of how to tip it from another terminal.
+  const Result view = shell(std::string(LADDER_BINARY_DIR) + "/clients/ladder-view --ascii --frames 1 --domain " +
+                            std::to_string(domain_) + " --sim-id " + replay_id + " --timeout 10 < /dev/null");
+  EXPECT_EQ(view.code, 0) << view.output;
+  EXPECT_NE(view.output.find("a replay of a recorded session (ladderctl replay): it takes no commands"),
+            std::string::npos)
+      << view.output;
+  EXPECT_EQ(view.output.find("from another terminal"), std::string::npos) << view.output;
 }
 
 // A replay may not take the sim id of a ladder that is on the domain: a live server's clients would get the replay's

@@ -7,6 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -161,6 +165,25 @@ TEST(SessionRules, EverySessionVerbRefusalWordForWord) {
   EXPECT_FALSE(o.accepted);
   EXPECT_EQ(o.reason, "unknown command kind 14");
   EXPECT_EQ(s->state_hash(), b.hash);
+}
+
+// A scenes folder may hold a .toml that is no file (a pipe, which a read would wait on forever; a folder): `load`
+// says it is not a regular file, and the list of what there is leaves it out. (Before: "no scene 'pipe' in ...
+// (available: classic, folder, pipe)".)
+TEST(SessionRules, ALoadOfAPipeOrAFolderSaysItIsNoRegularFile) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("ladder-scenes-" + std::to_string(getpid()));
+  fs::create_directories(dir / "folder.toml");
+  fs::copy_file(kScenes + "/classic.toml", dir / "classic.toml", fs::copy_options::overwrite_existing);
+  ASSERT_EQ(mkfifo((dir / "pipe.toml").c_str(), 0600), 0);
+  scene::Scene sc = scene::load_scene(kScenes + "/classic.toml");
+  Session s(sc, dir.string(), Limits{}, Rates{});
+  refused(s, Verb{Load{"pipe"}}, "'pipe.toml' in " + dir.string() + " is not a regular file (a scene is a .toml file)");
+  refused(s, Verb{Load{"folder"}},
+          "'folder.toml' in " + dir.string() + " is not a regular file (a scene is a .toml file)");
+  refused(s, Verb{Load{"nothing"}}, "no scene 'nothing' in " + dir.string() + " (available: classic)");
+  accepted(s, Verb{Load{"classic"}});
+  fs::remove_all(dir);
 }
 
 TEST(SessionRules, PausedTheSessionRunsExactlyTheOrderedSteps) {
