@@ -5,7 +5,9 @@
 #include <CLI/CLI.hpp>
 
 #include <cerrno>
+#include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <string>
 
@@ -37,6 +39,24 @@ inline CLI::Validator number_check(bool strictly, double most = HUGE_VAL) {
       strictly ? "POSITIVE" : "NONNEGATIVE");
 }
 inline CLI::Validator positive(double most = HUGE_VAL) { return number_check(true, most); }
+
+// A whole number from 1 to `most`, e.g. of steps. (CLI11 said "Could not convert: N = 1e3" of one it could not read
+// into its integer.)
+inline CLI::Validator count(std::uint64_t most) {
+  return CLI::Validator(
+      [most](std::string& text) -> std::string {
+        std::uint64_t n = 0;
+        const char* last = text.data() + text.size();
+        const auto [end, ec] = std::from_chars(text.data(), last, n);
+        const bool whole = end == last && !text.empty();
+        if (whole && (ec == std::errc::result_out_of_range || (ec == std::errc() && n > most)))
+          return "must be at most " + std::to_string(most) + ", not " + text;
+        if (ec != std::errc() || !whole) return "'" + text + "' is not a whole number (1 to " + std::to_string(most) + ")";
+        if (n == 0) return "must be 1 or more, not 0";
+        return {};
+      },
+      "COUNT");
+}
 inline CLI::Validator non_negative(double most = HUGE_VAL) { return number_check(false, most); }
 
 // A finite number from lo to hi (CLI::Range lets a NaN through: it compares, and every comparison with NaN is false).

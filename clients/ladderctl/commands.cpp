@@ -40,13 +40,12 @@ std::vector<double> numbers(const std::string& text, std::size_t min, std::size_
   std::stringstream in(text);
   std::string part;
   while (std::getline(in, part, ',')) {
-    try {
-      std::size_t used = 0;
-      out.push_back(std::stod(part, &used));
-      if (used != part.size() || !std::isfinite(out.back())) throw std::invalid_argument(part);
-    } catch (const std::exception&) {
+    // A number too small for a double (1e-400) is 0 or nearly, not an error (std::stod threw); one too large is.
+    double v = 0;
+    bool underflow = false;
+    if (!client::read_number(part, v, underflow) || !std::isfinite(v))
       throw CLI::ValidationError(what, "'" + text + "' is not a list of finite numbers like 0.01,0");
-    }
+    out.push_back(v);
   }
   if (out.size() < min || out.size() > max)
     throw CLI::ValidationError(what, "'" + text + "' needs " +
@@ -516,7 +515,7 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   }
 
   auto* step = app.add_subcommand("step", "advance N steps (while paused)");
-  step->add_option("N", v.count, "number of steps")->required()->check(ladder::client::positive());
+  step->add_option("N", v.count, "number of steps")->required()->check(ladder::client::count(UINT32_MAX));
   step->callback([&] {
     const ladder_msg_Command c = cmd::step(v.count);
     action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };

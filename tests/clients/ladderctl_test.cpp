@@ -81,6 +81,7 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"break 5", 0, "accepted"},
       {"join 5", 0, "accepted"},
       {"step 10", 0, "accepted"},
+      {"poke 3 --impulse 1e-400,0.001", 0, "accepted"},  // 1e-400 is 0 to a double, not an error (it was)
       {"set damping.linear 0.2", 0, "accepted"},
       {"set sim.gravity [0,-9.81]", 0, "accepted"},
       {"tip", 0, "accepted"},
@@ -107,7 +108,9 @@ TEST_F(Ladderctl, EveryCommandKindRoundTripsWithItsAnswer) {
       {"tip --domian 5", 2, "ladderctl: unknown option '--domian' (did you mean '--domain'?)\nRun with"},
       {"tip now", 2, "ladderctl: unexpected 'now'\nRun with"},
       {"watch state --kinds lock", 2, "only watch events takes --kinds"},
-      {"step 0", 2, "N: must be a number greater than 0, not 0"},
+      {"step 0", 2, "N: must be 1 or more, not 0"},
+      {"step 1e3", 2, "N: '1e3' is not a whole number (1 to 4294967295)"},
+      {"step 4294967297", 2, "N: must be at most 4294967295, not 4294967297"},
       {"replay /dev/null --speed -1", 2, "--speed: must be a number of 0 or more, not -1"},
       {"watch events --kinds flip,lock", 2, "'flip' is not an event kind (flip_flop, impact, lock, unlock, break, "
                                             "join, solver_warning, solver_failure, command_refused)"},
