@@ -79,6 +79,7 @@ struct Outbox {
   std::vector<CommandOut> commands;       // only when recording
   std::vector<CheckpointOut> checkpoints;  // only when recording
   std::vector<CheckpointOut> failures;     // only when recording: where a step failed (the session paused)
+  std::vector<CheckpointOut> non_finite;   // the same: where the state was found non-finite (the session paused)
   std::vector<EventOut> events;
   std::vector<ladder_msg_Stats> stats;
   std::vector<SceneOut> scenes;
@@ -86,7 +87,8 @@ struct Outbox {
 
   // Empties every list and keeps their capacity (the two threads swap one Outbox to and fro).
   void clear() {
-    acks.clear(), commands.clear(), checkpoints.clear(), failures.clear(), events.clear(), stats.clear();
+    acks.clear(), commands.clear(), checkpoints.clear(), failures.clear(), non_finite.clear(), events.clear();
+    stats.clear();
     scenes.clear(), ticks.clear();
   }
 };

@@ -32,12 +32,13 @@ void Physics::checkpoint() {
   next_checkpoint_ = c.t + sh_.config.checkpoint_every;
 }
 
-// A failed step (or a state found non-finite) paused the session: the log says where, so that a re-run fails there
-// too and goes on as the session did (a reset then restores the scene's own settings; docs/recording.md).
-void Physics::record_failure() {
+// A failed step (or a state found non-finite) paused the session: the log says where and which, so that a re-run
+// fails there too and goes on as the session did (a reset then restores the scene's own settings;
+// docs/recording.md).
+void Physics::record_failure(bool step_failed) {
   if (!recording_) return;
   const CheckpointOut c = place();
-  with_outbox([&](Outbox& o) { o.failures.push_back(c); });
+  with_outbox([&](Outbox& o) { (step_failed ? o.failures : o.non_finite).push_back(c); });
 }
 
 void Physics::push_scene() {
@@ -186,7 +187,7 @@ void Physics::run_step() {
     return;
   } catch (const std::runtime_error& e) {
     spdlog::error("step failed, simulation paused: {}", e.what());
-    record_failure();
+    record_failure(true);
     with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", e.what(), 0, 0}); });
     debt_ = 0;
   }
@@ -273,7 +274,7 @@ void Physics::publish_state() {
     // pauses, so that a reset restores the scene's own settings. Reported once, not at every command while paused.
     if (session_.failed()) return;
     session_.fail();
-    record_failure();
+    record_failure(false);
     const std::string why = "the state holds a non-finite number (" + bad + "): not published; paused";
     spdlog::error("step failed, simulation paused: {}", why);
     with_outbox([&](Outbox& o) { o.events.push_back({finite_time(), "solver_failure", why, 0, 0}); });
@@ -385,7 +386,10 @@ void Physics::tick_loop(const std::atomic<bool>& stop) {
       deadline = start;
     }
     take_commands();
-    if (recording_ && session_.sim().time() >= next_checkpoint_) checkpoint();
+    // Not at the place of a failed step: its time may have moved on inside the step, and a checkpoint there would
+    // hash the state the failure left, while a state published before the failure at the same place holds the one
+    // before (the re-run could not tell which). The next step's own check takes one.
+    if (recording_ && !session_.failed() && session_.sim().time() >= next_checkpoint_) checkpoint();
     advance(period, start);
     if (interrupted_) return;  // nothing of a step cut short is published
     tick_.commands = static_cast<std::uint32_t>(taken_);  // those of the wait before this tick and of its start

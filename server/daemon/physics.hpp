@@ -44,7 +44,7 @@ class Physics {
   void run_step();
   void push_scene();
   void checkpoint();
-  void record_failure();
+  void record_failure(bool step_failed);
   CheckpointOut place() const;
   void log_tick(Clock::time_point start, Clock::duration late);
   void hand_over_ticks();

@@ -68,6 +68,7 @@ void Recorder::record(const Outbox& out) {
   };
   for (const CheckpointOut& c : out.checkpoints) place(transport::kCheckpointChannel, c);
   for (const CheckpointOut& c : out.failures) place(transport::kFailureChannel, c);
+  for (const CheckpointOut& c : out.non_finite) place(transport::kNonFiniteChannel, c);
 }
 
 void Recorder::record_state(const StateFrame& f, std::uint64_t seq) {

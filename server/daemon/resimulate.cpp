@@ -85,6 +85,7 @@ struct GenerationInfo {
   std::int32_t blocks = 0;
   double min_dt = 0, max_dt = 0;
   std::vector<std::int64_t> checkpoint_steps;  // sorted
+  std::vector<std::int64_t> failed_steps;      // sorted: where a step failed (its time moved on, its count did not)
 };
 
 // The server writes a checkpoint at each scene's start and every checkpoint_every of sim time; a recorded step
@@ -105,8 +106,12 @@ std::string check_step(const std::map<std::int32_t, GenerationInfo>& gens, const
     return std::string("a ") + what + " of generation " + std::to_string(g) + ", which no scene record starts";
   const GenerationInfo& info = it->second;
   if (t) {
-    // Time is the sum of the steps' dt: between step * min_dt and step * max_dt (with rounding to spare).
-    const double lo = static_cast<double>(step) * info.min_dt, hi = static_cast<double>(step) * info.max_dt;
+    // Time is the sum of the steps' dt: between step * min_dt and step * max_dt (with rounding to spare), and a step
+    // that failed may have taken part of its dt without being counted.
+    const auto failed = std::upper_bound(info.failed_steps.begin(), info.failed_steps.end(), step) -
+                        info.failed_steps.begin();
+    const double lo = static_cast<double>(step) * info.min_dt,
+                 hi = static_cast<double>(step + failed) * info.max_dt;
     if (*t < lo * (1 - 1e-6) - info.max_dt || *t > hi * (1 + 1e-6) + info.max_dt) {
       char buf[200];
       std::snprintf(buf, sizeof buf, "a %s at %s with t = %g s: %lld steps of dt = %g .. %g s take %g .. %g s", what,
@@ -142,7 +147,7 @@ void check_session(const SessionLog& log, const Origins& at) {
     if (i == 0 && s.generation != 0)
       refuse(log, transport::kSceneChannel, at.scenes[i],
              "the first scene record has generation " + std::to_string(s.generation) + " (a log starts at 0)");
-    auto [it, fresh] = gens.try_emplace(s.generation, GenerationInfo{s.blocks, s.dt, s.dt, {}});
+    auto [it, fresh] = gens.try_emplace(s.generation, GenerationInfo{s.blocks, s.dt, s.dt, {}, {}});
     if (!fresh && it->second.blocks != s.blocks)
       refuse(log, transport::kSceneChannel, at.scenes[i],
              "generation " + std::to_string(s.generation) + " has " + std::to_string(s.blocks) +
@@ -158,16 +163,35 @@ void check_session(const SessionLog& log, const Origins& at) {
              "a checkpoint of generation " + std::to_string(c.generation) + ", which no scene record starts");
     it->second.checkpoint_steps.push_back(c.step);
   }
-  for (auto& [g, info] : gens) std::sort(info.checkpoint_steps.begin(), info.checkpoint_steps.end());
+  for (std::size_t i = 0; i < log.failures.size(); ++i) {
+    const SessionLog::Failure& f = log.failures[i];
+    const auto it = gens.find(f.at.generation);
+    if (it == gens.end())
+      refuse(log, f.step ? transport::kFailureChannel : transport::kNonFiniteChannel, at.failures[i],
+             "a failure of generation " + std::to_string(f.at.generation) + ", which no scene record starts");
+    if (f.step) it->second.failed_steps.push_back(f.at.step);
+    // The server pauses at a failure: the next is at another place (a command resumes or steps it).
+    for (std::size_t j = 0; j < i; ++j)
+      if (std::tie(log.failures[j].at.generation, log.failures[j].at.step, log.failures[j].at.commands_applied) ==
+          std::tie(f.at.generation, f.at.step, f.at.commands_applied))
+        refuse(log, f.step ? transport::kFailureChannel : transport::kNonFiniteChannel, at.failures[i],
+               "a second failure at " + place(f.at.generation, f.at.step) + " with " +
+                   std::to_string(f.at.commands_applied) + " commands taken (the server pauses at the first)");
+  }
+  for (auto& [g, info] : gens) {
+    std::sort(info.checkpoint_steps.begin(), info.checkpoint_steps.end());
+    std::sort(info.failed_steps.begin(), info.failed_steps.end());
+  }
   for (std::size_t i = 0; i < log.checkpoints.size(); ++i) {
     const ladderlcm::checkpoint_t& c = log.checkpoints[i];
     if (const auto why = check_step(gens, "checkpoint", c.generation, c.step, &c.sim_time); !why.empty())
       refuse(log, transport::kCheckpointChannel, at.checkpoints[i], why);
   }
   for (std::size_t i = 0; i < log.failures.size(); ++i) {
-    const ladderlcm::checkpoint_t& f = log.failures[i];
+    const ladderlcm::checkpoint_t& f = log.failures[i].at;
     if (const auto why = check_step(gens, "failure", f.generation, f.step, &f.sim_time); !why.empty())
-      refuse(log, transport::kFailureChannel, at.failures[i], why);
+      refuse(log, log.failures[i].step ? transport::kFailureChannel : transport::kNonFiniteChannel, at.failures[i],
+             why);
   }
   for (std::size_t i = 0; i < log.states.size(); ++i) {
     const ladderlcm::state_t& s = log.states[i];
@@ -214,8 +238,8 @@ SessionLog read_events(transport::LogReader& reader) {
     } else if (e->channel == transport::kCheckpointChannel) {
       log.checkpoints.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
       at.checkpoints.push_back(o);
-    } else if (e->channel == transport::kFailureChannel) {
-      log.failures.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
+    } else if (e->channel == transport::kFailureChannel || e->channel == transport::kNonFiniteChannel) {
+      log.failures.push_back({reader.decode<ladderlcm::checkpoint_t>(*e), e->channel == transport::kFailureChannel});
       at.failures.push_back(o);
     } else if (e->channel == transport::kEventChannel) {
       reader.decode<ladderlcm::event_t>(*e);  // not needed to re-run, but a log with a bad one is a bad log
@@ -281,7 +305,9 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
                                                 "), accepted live, is refused in the re-run: " + o.reason);
     }
   };
-  // Runs to generation g, step s with `commands` commands taken.
+  // Runs to generation g, step s with `commands` commands taken; false when the run passes it or a step fails that
+  // did not fail live (`failed_here` then says which).
+  std::string failed_here;
   const auto reach = [&](std::int32_t g, std::int64_t s, std::int64_t commands) {
     while (true) {
       apply_due(commands);
@@ -296,7 +322,13 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       // As the server does: paused, a step is one that a step command ordered (so that a resumed session keeps
       // only the ordered steps not yet taken where the log ends).
       if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
-      session->step();
+      try {
+        session->step();
+      } catch (const std::runtime_error& e) {
+        failed_here = "the step at " + at(gen, step, session->sim().time()) + " failed in the re-run, not live: " +
+                      e.what();
+        return false;
+      }
       ++r.steps;
       if (progress && r.steps % 10000 == 0) progress(r.steps, r.states);
     }
@@ -324,7 +356,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     marks.push_back({st.generation, st.step, st.commands_applied, kStateMark, i});
   }
   for (std::size_t i = 0; i < log.failures.size(); ++i) {
-    const auto& f = log.failures[i];
+    const auto& f = log.failures[i].at;
     marks.push_back({f.generation, f.step, f.commands_applied, kFailureMark, i});
   }
   std::stable_sort(marks.begin(), marks.end(), [](const Mark& a, const Mark& b) {
@@ -333,7 +365,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
   const auto time_of = [&](const Mark& m) {
     return m.kind == kStateMark ? log.states[m.index].sim_time
            : m.kind == kCheckpointMark ? log.checkpoints[m.index].sim_time
-                                       : log.failures[m.index].sim_time;
+                                       : log.failures[m.index].at.sim_time;
   };
   // A state or checkpoint: the first difference from the re-run's, or "".
   const auto differs = [&](const Mark& m) -> std::string {
@@ -345,27 +377,29 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     return "the complete state at " + at(m.generation, m.step, time_of(m)) +
            " differs from the recorded one (checkpoint hash)";
   };
-  // A recorded failure: the server found the state non-finite and paused, or its next step failed (and it paused
-  // at the state the step's watchdog left). The re-run does the same, and must end where the server did.
+  // A recorded failure: the server's next step failed (and it paused at the state the step's watchdog left), or it
+  // found the state non-finite and paused. The re-run does the same, and must end where the server did.
   std::vector<bool> failed(log.failures.size(), false);
   const auto fail_as_recorded = [&](const Mark& m) -> std::string {
     failed[m.index] = true;
-    StateFrame frame;
-    fill_frame(*session, 0, frame);
-    if (!non_finite_in(frame).empty()) {
-      session->fail();
-    } else {
+    const SessionLog::Failure& f = log.failures[m.index];
+    const std::string where = at(m.generation, m.step, time_of(m));
+    if (f.step) {
       if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
       try {
         session->step();
         ++r.steps;
-        return "the step at " + at(m.generation, m.step, time_of(m)) + " failed live, and not in the re-run";
+        return "the step at " + where + " failed live, and not in the re-run";
       } catch (const std::runtime_error&) {  // as it did live: the session paused itself
       }
+    } else {
+      StateFrame frame;
+      fill_frame(*session, 0, frame);
+      if (non_finite_in(frame).empty()) return "the state at " + where + " was not finite live, and is in the re-run";
+      session->fail();
     }
-    if (static_cast<std::int64_t>(session->state_hash()) != log.failures[m.index].state_hash)
-      return "the state the failed step at " + at(m.generation, m.step, time_of(m)) +
-             " left differs from the recorded one (failure hash)";
+    if (static_cast<std::int64_t>(session->state_hash()) != f.at.state_hash)
+      return "the state the failure at " + where + " left differs from the recorded one (failure hash)";
     ++r.failures;
     return {};
   };
@@ -378,16 +412,18 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     if (!reach(m.generation, m.step, m.commands)) {
       static const char* kWhat[] = {"checkpoint", "state", "failure"};
       r.identical = false;
-      r.difference = "could not reach the recorded " + std::string(kWhat[m.kind]) + " at " +
-                     at(m.generation, m.step, time_of(m)) + " with " + std::to_string(m.commands) + " commands taken";
+      r.difference = !failed_here.empty() ? failed_here
+                                          : "could not reach the recorded " + std::string(kWhat[m.kind]) + " at " +
+                                                at(m.generation, m.step, time_of(m)) + " with " +
+                                                std::to_string(m.commands) + " commands taken";
       break;
     }
     std::string d = m.kind == kFailureMark ? fail_as_recorded(m) : differs(m);
     if (!d.empty() && m.kind != kFailureMark) {
+      // Taken after the failure at this place? Compared again after it; a difference either way is the first one.
       for (std::size_t j = k + 1; j < marks.size() && same_place(marks[j], m); ++j)
         if (marks[j].kind == kFailureMark && !failed[marks[j].index]) {
-          if (const std::string e = fail_as_recorded(marks[j]); !e.empty()) d = e;
-          else d = differs(m);
+          if (fail_as_recorded(marks[j]).empty() && differs(m).empty()) d.clear();
           break;
         }
     }
@@ -408,11 +444,12 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
     const ladderlcm::command_t& c = log.commands[next_command];
     if (!reach(c.generation, c.step, applied) || (apply_due(c.command_seq), applied != c.command_seq)) {
       r.identical = false;
-      r.difference = "could not reach command " + std::to_string(c.command_seq) + " (" +
-                     kind_name(c.kind) + ") at its recorded " +
-                     place(c.generation, c.step) + "; the re-run stands at " +
-                     place(static_cast<std::int32_t>(session->generation()),
-                           static_cast<std::int64_t>(session->sim().steps()));
+      r.difference = !failed_here.empty() ? failed_here
+                                          : "could not reach command " + std::to_string(c.command_seq) + " (" +
+                                                kind_name(c.kind) + ") at its recorded " + place(c.generation, c.step) +
+                                                "; the re-run stands at " +
+                                                place(static_cast<std::int32_t>(session->generation()),
+                                                      static_cast<std::int64_t>(session->sim().steps()));
     }
   }
   r.last_command_seq = static_cast<std::uint64_t>(applied);

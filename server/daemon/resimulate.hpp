@@ -29,7 +29,12 @@ struct SessionLog {
   std::vector<ladderlcm::command_t> commands;      // in log order, which is command_seq's (checked)
   std::vector<ladderlcm::state_t> states;          // in log order
   std::vector<ladderlcm::checkpoint_t> checkpoints;
-  std::vector<ladderlcm::checkpoint_t> failures;   // where a step failed and the session paused itself
+  // Where the session paused itself: a step failed (`step`), or the state was found non-finite.
+  struct Failure {
+    ladderlcm::checkpoint_t at;
+    bool step = true;
+  };
+  std::vector<Failure> failures;  // in log order
   std::uint64_t events = 0;                        // event records (not needed to re-run)
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
 };
@@ -37,7 +42,7 @@ struct SessionLog {
 // Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the
 // records agree with each other (each generation has a scene record, a state has its scene's number of blocks, a
 // step fits the time at the scene's dt and lies within two checkpoint intervals of a checkpoint, command_seq
-// increases), so that a re-run of it always ends. Throws std::runtime_error naming the file, the event and what is
+// increases, no two failures at one place), so that a re-run of it always ends. Throws std::runtime_error naming the file, the event and what is
 // wrong (not a log, an undecodable or impossible event, no scene record); a damaged or cut-off end is not an
 // error: reading stops there and `damage` says where.
 SessionLog read_session_log(const std::string& path);

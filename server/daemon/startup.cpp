@@ -153,8 +153,9 @@ int run_resimulation(const std::string& path, bool progress) {
     return exit_with(2, e.what());
   }
   if (!log.damage.empty()) spdlog::warn("{}: {}; re-running what came before", path, log.damage);
-  spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events", path, log.scenes.size(),
-               log.commands.size(), log.states.size(), log.checkpoints.size(), log.events);
+  spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events{}", path, log.scenes.size(),
+               log.commands.size(), log.states.size(), log.checkpoints.size(), log.events,
+               log.failures.empty() ? std::string() : fmt::format(", {} failures", log.failures.size()));
   std::unique_ptr<Session> session;
   Resimulation r;
   try {

@@ -173,10 +173,15 @@ Entity make_participant(dds_domainid_t domain, const Identity* identity) {
   }
   Qos q;
   apply_security(q, *identity);
-  return Entity(check(dds_create_participant(domain, q.get(), nullptr),
-                      "create DDS participant on domain " + std::to_string(domain) + " with the " +
-                          role_name(identity->role) + " identity " + identity->dir +
-                          " (Cyclone's security plugins refused it; run with --log-level debug for their reason)"));
+  take_last_error();
+  const dds_entity_t p = dds_create_participant(domain, q.get(), nullptr);
+  if (p >= 0) return Entity(p);
+  if (const std::string reason = take_last_error(); reason.find("free participant index") != std::string::npos)
+    throw DdsError(participant_failure(domain, reason), p);
+  throw DdsError("create DDS participant on domain " + std::to_string(domain) + " with the " +
+                     role_name(identity->role) + " identity " + identity->dir +
+                     " (Cyclone's security plugins refused it; run with --log-level debug for their reason)",
+                 p);
 }
 
 Entity make_topic(const Entity& participant, const dds_topic_descriptor_t* desc, const char* name) {

@@ -29,6 +29,8 @@ inline constexpr const char* kCommandChannel = "LADDER_COMMAND";
 inline constexpr const char* kCheckpointChannel = "LADDER_CHECKPOINT";
 // A step that failed (the session paused itself), as a checkpoint_t: where, and the hash of the state it was left at.
 inline constexpr const char* kFailureChannel = "LADDER_FAILURE";
+// A state found to hold a non-finite number, which the server did not publish (it paused): the same fields.
+inline constexpr const char* kNonFiniteChannel = "LADDER_NONFINITE";
 
 std::int64_t now_us();  // wall time [us since the epoch], the LCM convention
 

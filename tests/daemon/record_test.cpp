@@ -785,8 +785,9 @@ TEST_F(Record, AFailedStepAndTheResetAfterItReRunAndResume) {
 
   const daemon::SessionLog log = daemon::read_session_log(log_);
   ASSERT_EQ(log.failures.size(), 1u);
-  EXPECT_EQ(log.failures[0].generation, 0);
-  EXPECT_EQ(log.failures[0].commands_applied, 3);
+  EXPECT_TRUE(log.failures[0].step);
+  EXPECT_EQ(log.failures[0].at.generation, 0);
+  EXPECT_EQ(log.failures[0].at.commands_applied, 3);
   Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("(5 commands; 1 failed step failed alike)"), std::string::npos) << r.output;
