@@ -110,12 +110,15 @@ std::string check_step(const std::map<std::int32_t, GenerationInfo>& gens, const
     // that failed may have taken part of its dt without being counted.
     const auto failed = std::upper_bound(info.failed_steps.begin(), info.failed_steps.end(), step) -
                         info.failed_steps.begin();
-    const double lo = static_cast<double>(step) * info.min_dt,
-                 hi = static_cast<double>(step + failed) * info.max_dt;
-    if (*t < lo * (1 - 1e-6) - info.max_dt || *t > hi * (1 + 1e-6) + info.max_dt) {
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "a %s at %s with t = %g s: %lld steps of dt = %g .. %g s take %g .. %g s", what,
-                    place(g, step).c_str(), *t, static_cast<long long>(step), info.min_dt, info.max_dt, lo, hi);
+    const double lo = static_cast<double>(step) * info.min_dt, hi = static_cast<double>(step) * info.max_dt;
+    const double failed_time = static_cast<double>(failed) * info.max_dt;
+    if (*t < lo * (1 - 1e-6) - info.max_dt || *t > (hi + failed_time) * (1 + 1e-6) + info.max_dt) {
+      char buf[200], more[80] = "";
+      if (failed)
+        std::snprintf(more, sizeof more, ", and %lld failed before it at most %g s", static_cast<long long>(failed),
+                      failed_time);
+      std::snprintf(buf, sizeof buf, "a %s at %s with t = %g s: %lld steps of dt = %g .. %g s take %g .. %g s%s", what,
+                    place(g, step).c_str(), *t, static_cast<long long>(step), info.min_dt, info.max_dt, lo, hi, more);
       return buf;
     }
   }

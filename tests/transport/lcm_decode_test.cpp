@@ -115,6 +115,14 @@ ladderlcm::checkpoint_t a_checkpoint(std::int64_t step = 0, double t = 0, int ge
   return c;
 }
 
+// A failed step's record (LADDER_FAILURE): a checkpoint_t on a channel of its own.
+struct FailureRecord : ladderlcm::checkpoint_t {};
+FailureRecord a_failure(std::int64_t step, double t) {
+  FailureRecord f;
+  static_cast<ladderlcm::checkpoint_t&>(f) = a_checkpoint(step, t);
+  return f;
+}
+
 // Decoded and encoded again, a message gives back the same bytes: every field read as written.
 template <class T>
 void round_trip(const T& m) {
@@ -327,6 +335,7 @@ class LogBytes : public ::testing::Test {
   static const char* channel(const ladderlcm::command_t&) { return transport::kCommandChannel; }
   static const char* channel(const ladderlcm::event_t&) { return transport::kEventChannel; }
   static const char* channel(const ladderlcm::checkpoint_t&) { return transport::kCheckpointChannel; }
+  static const char* channel(const FailureRecord&) { return transport::kFailureChannel; }
   std::string path_;
 };
 
@@ -375,6 +384,26 @@ TEST_F(LogBytes, RecordsAreCheckedAgainstEachOther) {
   k.kind = 99;
   EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), k)), "kind 99 is no command kind (0 to 13)"));
   EXPECT_TRUE(has(read(log(an_event())), "no scene record"));
+}
+
+// A failed step's time moves on inside the step (to the last piece its watchdog accepted) but its count does not:
+// each failure before a record lets the record's time lie a dt further past its step count. Two at one place (the
+// server pauses at the first) are refused.
+TEST_F(LogBytes, EachFailedStepLetsTheTimeRunAStepFurtherAheadOfTheStepCount) {
+  // 30 steps of 1 ms and two failed steps that took 0.9 ms each: 31.8 ms, more than 30 steps and the one to spare.
+  EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), a_state(3, 30, 0.0318))),
+                  "30 steps of dt = 0.001 .. 0.001 s take 0.03 .. 0.03 s"));
+  EXPECT_EQ(read(log(a_scene(), a_checkpoint(), a_failure(10, 0.0109), a_failure(20, 0.0209), a_state(3, 30, 0.0318))),
+            "");
+  // Each failure before it adds a dt to what the state's time may be (32.7 ms: 30 steps, the spare and two); one
+  // after it does not.
+  EXPECT_EQ(read(log(a_scene(), a_checkpoint(), a_failure(10, 0.0109), a_failure(20, 0.0209), a_state(3, 30, 0.0327))),
+            "");
+  EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), a_failure(10, 0.0109), a_failure(40, 0.0419),
+                           a_state(3, 30, 0.0327))),
+                  "30 steps of dt = 0.001 .. 0.001 s take 0.03 .. 0.03 s, and 1 failed before it at most 0.001 s"));
+  EXPECT_TRUE(has(read(log(a_scene(), a_checkpoint(), a_failure(10, 0.0109), a_failure(10, 0.0109))),
+                  "a second failure at generation 0, step 10 with 0 commands taken (the server pauses at the first)"));
 }
 
 // A scene record whose text makes another number of blocks than it says: the re-run refuses it before it builds
