@@ -273,7 +273,9 @@ std::string text_of(const char (&src)[N]) {
 
 // Text from a peer made safe for a log line or a terminal: each control character (a newline would start a forged
 // line, an escape sequence would drive the terminal), the C1 controls U+0080 to U+009F and every byte that is not
-// part of valid UTF-8 written as \xNN, and a backslash as \\ so that the escape cannot be forged either. What comes
+// part of valid UTF-8 written as \xNN, the bidirectional controls too (U+202A to U+202E, U+2066 to U+2069, the marks
+// U+200E, U+200F and U+061C: they reorder what a terminal shows, so that a name reads as another), and a backslash
+// as \\ so that the escape cannot be forged either. What comes
 // out is valid UTF-8 (cairo, which draws the viewer's text, needs that: with a scene name that was not, the window's
 // picture stopped for good).
 inline std::string printable(std::string_view text) {
@@ -313,6 +315,12 @@ inline std::string printable(std::string_view text) {
     if (!valid) {
       escape(c);
       ++i;
+      continue;
+    }
+    if ((cp >= 0x202a && cp <= 0x202e) || (cp >= 0x2066 && cp <= 0x2069) || cp == 0x200e || cp == 0x200f ||
+        cp == 0x061c) {
+      for (std::size_t k = 0; k < len; ++k) escape(static_cast<unsigned char>(text[i + k]));
+      i += len;
       continue;
     }
     out.append(text.substr(i, len));

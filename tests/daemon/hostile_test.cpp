@@ -288,6 +288,12 @@ TEST(Printable, KeepsValidUtf8AndEscapesControlsAndEveryOtherByte) {
   EXPECT_EQ(printable("\xf4\x90\x80\x80"), "\\xf4\\x90\\x80\\x80");  // past U+10FFFF
   EXPECT_EQ(printable("\xff\xfe\xc3("), "\\xff\\xfe\\xc3(");
   EXPECT_EQ(printable(std::string("a\0b", 3)), "a\\x00b");
+  // The bidirectional controls, which make a terminal show text in another order ("abc" + U+202E + "fdp.exe" reads
+  // as "abcexe.pdf"), and not their neighbours.
+  EXPECT_EQ(printable("abc\xe2\x80\xae" "fdp.exe"), "abc\\xe2\\x80\\xae" "fdp.exe");  // U+202E
+  EXPECT_EQ(printable("\xe2\x81\xa6x\xe2\x81\xa9"), "\\xe2\\x81\\xa6x\\xe2\\x81\\xa9");  // U+2066, U+2069
+  EXPECT_EQ(printable("\xe2\x80\x8f\xd8\x9c"), "\\xe2\\x80\\x8f\\xd8\\x9c");          // U+200F, U+061C
+  EXPECT_EQ(printable("\xe2\x80\xa9\xe2\x80\xaf"), "\xe2\x80\xa9\xe2\x80\xaf");      // U+2029, U+202F: kept
 }
 
 TEST_F(Hostile, AClientsTextCannotForgeALogLine) {
