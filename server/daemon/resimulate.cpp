@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <tuple>
 
@@ -166,6 +167,7 @@ void check_session(const SessionLog& log, const Origins& at) {
              "a checkpoint of generation " + std::to_string(c.generation) + ", which no scene record starts");
     it->second.checkpoint_steps.push_back(c.step);
   }
+  std::set<std::tuple<std::int32_t, std::int64_t, std::int64_t>> failed_at;
   for (std::size_t i = 0; i < log.failures.size(); ++i) {
     const SessionLog::Failure& f = log.failures[i];
     const auto it = gens.find(f.at.generation);
@@ -174,12 +176,10 @@ void check_session(const SessionLog& log, const Origins& at) {
              "a failure of generation " + std::to_string(f.at.generation) + ", which no scene record starts");
     if (f.step) it->second.failed_steps.push_back(f.at.step);
     // The server pauses at a failure: the next is at another place (a command resumes or steps it).
-    for (std::size_t j = 0; j < i; ++j)
-      if (std::tie(log.failures[j].at.generation, log.failures[j].at.step, log.failures[j].at.commands_applied) ==
-          std::tie(f.at.generation, f.at.step, f.at.commands_applied))
-        refuse(log, f.step ? transport::kFailureChannel : transport::kNonFiniteChannel, at.failures[i],
-               "a second failure at " + place(f.at.generation, f.at.step) + " with " +
-                   std::to_string(f.at.commands_applied) + " commands taken (the server pauses at the first)");
+    if (!failed_at.emplace(f.at.generation, f.at.step, f.at.commands_applied).second)
+      refuse(log, f.step ? transport::kFailureChannel : transport::kNonFiniteChannel, at.failures[i],
+             "a second failure at " + place(f.at.generation, f.at.step) + " with " +
+                 std::to_string(f.at.commands_applied) + " commands taken (the server pauses at the first)");
   }
   for (auto& [g, info] : gens) {
     std::sort(info.checkpoint_steps.begin(), info.checkpoint_steps.end());

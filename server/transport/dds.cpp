@@ -51,7 +51,8 @@ std::string take_last_error() {
 }
 
 // Why a participant could not be made, from Cyclone's error line when its log comes here (route_cyclone_log).
-std::string participant_failure(dds_domainid_t domain, const std::string& reason) {
+std::string participant_failure(dds_domainid_t domain, const std::string& line) {
+  const std::string reason = printable(line);  // (a line of Cyclone's may quote a peer's text)
   const std::string what = "create DDS participant on domain " + std::to_string(domain);
   if (reason.find("free participant index") != std::string::npos)
     return what + " (Cyclone: \"" + reason + "\": this host already has as many participants on the domain as the "
