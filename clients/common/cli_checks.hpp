@@ -51,7 +51,8 @@ inline CLI::Validator count(std::uint64_t most) {
         const bool whole = end == last && !text.empty();
         if (whole && (ec == std::errc::result_out_of_range || (ec == std::errc() && n > most)))
           return "must be at most " + std::to_string(most) + ", not " + text;
-        if (ec != std::errc() || !whole) return "'" + text + "' is not a whole number (1 to " + std::to_string(most) + ")";
+        if (ec != std::errc() || !whole)
+          return "'" + text + "' is not a whole number (1 to " + std::to_string(most) + ")";
         if (n == 0) return "must be 1 or more, not 0";
         return {};
       },

@@ -186,8 +186,8 @@ void print_event(const client::Event& e, bool json) {
     j.field("energy_removed", e.energy_removed).field("detail", e.detail);
     std::printf("%s\n", j.done().c_str());
   } else {
-    std::printf("t = %9s s  %-15s hinge %-3d energy removed %.3g J%s%s\n", client::fixed(e.t, 4).c_str(), e.kind.c_str(), e.hinge,
-                e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
+    std::printf("t = %9s s  %-15s hinge %-3d energy removed %.3g J%s%s\n", client::fixed(e.t, 4).c_str(),
+                e.kind.c_str(), e.hinge, e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
   }
 }
 
@@ -239,8 +239,7 @@ void print_state(const client::State& s, bool json) {
   for (std::size_t k = 1; k < s.hinges.size() && k <= 16; ++k) flips += std::to_string(s.hinges[k].flips) + " ";
   std::printf("t = %9s s  step %-8llu %s energy %s J  flips per hinge: %s%s\n", client::fixed(s.sim_time, 4).c_str(),
               static_cast<unsigned long long>(s.step), s.paused ? "paused " : "", client::fixed(s.energy, 6).c_str(),
-              flips.c_str(),
-              s.hinges.size() > 17 ? "..." : "");
+              flips.c_str(), s.hinges.size() > 17 ? "..." : "");
 }
 
 // The event kinds ladderd publishes: the ladder's (server/ladder/ladder.cpp, to_string(EventKind)) and the server's
