@@ -224,7 +224,8 @@ class Viewer {
       char buf[128];
       // A replay that has played to its end (or was stopped) goes quiet as a stopped server does.
       std::snprintf(buf, sizeof buf, "%s (%.0f s): waiting ...",
-                    link_->feed.replay() ? "the replay has sent nothing: ended or stopped?" : "ladderd is not answering",
+                    link_->feed.replay() ? "the replay has sent nothing: ended or stopped?"
+                                         : "ladderd is not answering",
                     link_->feed.quiet());
       hud.banner = buf;
     }

@@ -63,6 +63,12 @@ std::string non_finite_in(const StateFrame& f) {
   return {};
 }
 
+std::string non_finite_in(const Session& s) {
+  StateFrame f;
+  fill_frame(s, 0, f);
+  return non_finite_in(f);
+}
+
 void finite_or_zero(double& v, const char* name, std::string& fields, std::uint64_t& count) {
   if (std::isfinite(v)) return;
   v = 0;

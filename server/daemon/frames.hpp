@@ -25,6 +25,8 @@ void fill_frame(const Session& s, std::uint64_t commands_applied, StateFrame& f)
 // finite. The commands' checks and the step's watchdog should leave none; one that slips through must not reach
 // a client (a viewer that divides by it, or a controller that feeds it back, fails far from the cause).
 std::string non_finite_in(const StateFrame& f);
+// The same for the session's state as State would publish it (a re-run's and a resumed session's check).
+std::string non_finite_in(const Session& s);
 
 // Replaces a non-finite number by 0 and counts it, naming the field in `fields` (Stats and events are figures for
 // people and plots: a 0 there with a log line is better than a NaN that breaks every reader).

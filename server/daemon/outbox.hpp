@@ -87,9 +87,8 @@ struct Outbox {
 
   // Empties every list and keeps their capacity (the two threads swap one Outbox to and fro).
   void clear() {
-    acks.clear(), commands.clear(), checkpoints.clear(), failures.clear(), non_finite.clear(), events.clear();
-    stats.clear();
-    scenes.clear(), ticks.clear();
+    acks.clear(), commands.clear(), checkpoints.clear(), failures.clear(), non_finite.clear();
+    events.clear(), stats.clear(), scenes.clear(), ticks.clear();
   }
 };
 

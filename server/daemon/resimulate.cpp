@@ -396,9 +396,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       } catch (const std::runtime_error&) {  // as it did live: the session paused itself
       }
     } else {
-      StateFrame frame;
-      fill_frame(*session, 0, frame);
-      if (non_finite_in(frame).empty()) return "the state at " + where + " was not finite live, and is in the re-run";
+      if (non_finite_in(*session).empty()) return "the state at " + where + " was not finite live, and is in the re-run";
       session->fail();
     }
     if (static_cast<std::int64_t>(session->state_hash()) != f.at.state_hash)

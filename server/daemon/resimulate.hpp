@@ -2,9 +2,10 @@
 // a live server where a log ends (ladderd --resume).
 //
 // A log holds the scene as it was started, every command as the simulation took it (with the generation and step
-// at which it was applied and its place in the server's order), every published state and periodic checkpoints
-// (hashes of the complete dynamic state), and where a step failed. Runs are deterministic, so applying the same commands at the same steps
-// from the same scene reproduces every state exactly; the re-run compares each recorded state and checkpoint.
+// at which it was applied and its place in the server's order), every published state, periodic checkpoints
+// (hashes of the complete dynamic state) and where the session paused itself after a failure. Runs are
+// deterministic, so applying the same commands at the same steps from the same scene reproduces every state
+// exactly; the re-run compares each recorded state and checkpoint, and fails where the server did.
 #pragma once
 
 #include "daemon/recorder.hpp"
@@ -42,9 +43,9 @@ struct SessionLog {
 // Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the
 // records agree with each other (each generation has a scene record, a state has its scene's number of blocks, a
 // step fits the time at the scene's dt and lies within two checkpoint intervals of a checkpoint, command_seq
-// increases, no two failures at one place), so that a re-run of it always ends. Throws std::runtime_error naming the file, the event and what is
-// wrong (not a log, an undecodable or impossible event, no scene record); a damaged or cut-off end is not an
-// error: reading stops there and `damage` says where.
+// increases, no two failures at one place), so that a re-run of it always ends. Throws std::runtime_error naming
+// the file, the event and what is wrong (not a log, an undecodable or impossible event, no scene record); a damaged
+// or cut-off end is not an error: reading stops there and `damage` says where.
 SessionLog read_session_log(const std::string& path);
 // The same on bytes in memory (a fuzzer's input); `name` stands for the path in messages.
 SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std::string& name = "(bytes)");

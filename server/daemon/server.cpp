@@ -105,8 +105,8 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   Physics physics(shared, std::move(session));
   spdlog::info("serving '{}' as sim id '{}' on DDS domain {}: {} blocks, {} Hz physics, {} Hz states, real-time "
                "factor {}",
-               transport::printable(scene.name), config.sim_id, config.domain, scene.ladder.blocks, config.rates.physics,
-               config.rates.publish, config.rates.real_time_factor);
+               transport::printable(scene.name), config.sim_id, config.domain, scene.ladder.blocks,
+               config.rates.physics, config.rates.publish, config.rates.real_time_factor);
   if (config.spin_us > 0) spdlog::info("the physics thread busy-waits the last {} us before each tick", config.spin_us);
   std::exception_ptr physics_error;
   std::thread physics_thread([&] {

@@ -57,7 +57,8 @@ std::string participant_failure(dds_domainid_t domain, const std::string& line) 
   if (reason.find("free participant index") != std::string::npos)
     return what + " (Cyclone: \"" + reason + "\": this host already has as many participants on the domain as the "
            "configuration allows, 64 with the shipped one; stop some clients or servers, or use another domain)";
-  if (!reason.empty()) return what + " (Cyclone: \"" + reason + "\"; is CYCLONEDDS_URI a readable, valid configuration?)";
+  if (!reason.empty())
+    return what + " (Cyclone: \"" + reason + "\"; is CYCLONEDDS_URI a readable, valid configuration?)";
   return what + " (is CYCLONEDDS_URI a readable, valid configuration? Cyclone's reason is logged above)";
 }
 

@@ -275,9 +275,8 @@ std::string text_of(const char (&src)[N]) {
 // line, an escape sequence would drive the terminal), the C1 controls U+0080 to U+009F and every byte that is not
 // part of valid UTF-8 written as \xNN, the bidirectional controls too (U+202A to U+202E, U+2066 to U+2069, the marks
 // U+200E, U+200F and U+061C: they reorder what a terminal shows, so that a name reads as another), and a backslash
-// as \\ so that the escape cannot be forged either. What comes
-// out is valid UTF-8 (cairo, which draws the viewer's text, needs that: with a scene name that was not, the window's
-// picture stopped for good).
+// as \\ so that the escape cannot be forged either. What comes out is valid UTF-8 (cairo, which draws the viewer's
+// text, needs that: with a scene name that was not, the window's picture stopped for good).
 inline std::string printable(std::string_view text) {
   std::string out;
   out.reserve(text.size());
