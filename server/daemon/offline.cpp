@@ -1,5 +1,6 @@
 #include "daemon/offline.hpp"
 #include "daemon/fatal.hpp"
+#include "ladder/printable.hpp"
 #include "scene/simulation.hpp"
 
 #include <nlohmann/json.hpp>
@@ -20,6 +21,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
+
+// v as JSON text. A scene's name taken from its file's name, or a path, need not be UTF-8, and dump() throws on such
+// bytes (a run that wrote its events or summary ended in an uncaught exception); they are written as U+FFFD.
+std::string json_text(const json& v, int indent = -1) {
+  return v.dump(indent, ' ', false, json::error_handler_t::replace);
+}
 
 // An output file opened up front, so that a bad path is refused before any simulation is run.
 std::unique_ptr<std::ofstream> open_output(const std::string& path, const char* what) {
@@ -75,8 +82,9 @@ int run_offline(const OfflineOptions& o) {
     return exit_with(2, fmt::format("--duration {} s is shorter than half a step (sim.dt = {} s): no step would run",
                                     o.duration, sc.dt));
   const int blocks = sc.ladder.blocks;
-  spdlog::info("scene '{}' ({}): {} blocks, dt {} s, {}, solver {}, {} s of simulated time", sc.name, sc.source, blocks,
-               sc.dt, core::to_string(sc.options.integrator), core::to_string(sc.options.solver), o.duration);
+  spdlog::info("scene '{}' ({}): {} blocks, dt {} s, {}, solver {}, {} s of simulated time", printable(sc.name),
+               printable(sc.source), blocks, sc.dt, core::to_string(sc.options.integrator),
+               core::to_string(sc.options.solver), o.duration);
 
   const double energy_initial = sim->ladder().energy();
   std::map<std::string, int> counts;
@@ -104,14 +112,15 @@ int run_offline(const OfflineOptions& o) {
       stepping += std::chrono::duration<double>(Clock::now() - t0).count();
       for (const model::Event& e : sim->take_events()) {
         ++counts[model::to_string(e.kind)];
-        if (out.events) *out.events << event_json(e).dump() << '\n';
+        if (out.events) *out.events << json_text(event_json(e)) << '\n';
         if (e.kind == model::EventKind::SolverWarning) spdlog::warn("t = {:.4f} s: {}", e.t, e.detail);
       }
       for (const scene::Refusal& r : sim->take_refusals()) {
         ++counts["command_refused"];
-        spdlog::warn("{}: timeline command refused at t = {:.4f} s: {}", r.where, r.t, r.reason);
+        spdlog::warn("{}: timeline command refused at t = {:.4f} s: {}", printable(r.where), r.t,
+                     printable(r.reason));
         if (out.events)
-          *out.events << json{{"t", r.t}, {"kind", "command_refused"}, {"where", r.where}, {"reason", r.reason}}.dump()
+          *out.events << json_text({{"t", r.t}, {"kind", "command_refused"}, {"where", r.where}, {"reason", r.reason}})
                       << '\n';
       }
       if (o.progress && Clock::now() - last_report > std::chrono::seconds(2)) {
@@ -122,8 +131,13 @@ int run_offline(const OfflineOptions& o) {
     }
   } catch (const std::exception& e) {
     if (out.summary)
-      *out.summary << json{{"scene", sc.name}, {"failed", true}, {"error", e.what()}, {"sim_time", sim->time()},
-                           {"steps", sim->steps()}, {"events", counts}}.dump(2)
+      *out.summary << json_text({{"scene", sc.name},
+                                 {"failed", true},
+                                 {"error", e.what()},
+                                 {"sim_time", sim->time()},
+                                 {"steps", sim->steps()},
+                                 {"events", counts}},
+                                2)
                    << '\n';
     return exit_with(3, fmt::format("the simulation failed at t = {:.6f} s: {}", sim->time(), e.what()));
   }
@@ -156,7 +170,7 @@ int run_offline(const OfflineOptions& o) {
                                   {"motion", lost.motion},                     {"total", lost.total()}};
   const int flips = ladder.flip_flops();
   summary["energy_lost_per_flip_flop_J"] = flips > 0 ? json(ladder.lost_by_last_flip() / flips) : json(nullptr);
-  if (out.summary) *out.summary << summary.dump(2) << '\n';
+  if (out.summary) *out.summary << json_text(summary, 2) << '\n';
   spdlog::info("done: {} steps in {:.3f} s ({:.3g} block-steps/s), max hinge error {:.3g} m", sim->steps(),
                stepping, rate, max_error);
   for (const auto& [kind, n] : counts) spdlog::info("  {:>16}: {}", kind, n);

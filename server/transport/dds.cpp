@@ -6,7 +6,6 @@
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
-#include <mutex>
 #include <string>
 #include <utility>
 
@@ -23,10 +22,12 @@ struct CycloneLog {
   void (*sink)(const char*) = nullptr;
   std::string topic;  // whose undecodable samples are counted
   std::atomic<std::uint64_t> undecodable{0};
-  std::mutex mutex;
-  std::string last_error;  // Cyclone's last error line, for a message of ours that says why a call failed
 };
 CycloneLog g_cyclone_log;
+// Cyclone's last error line on this thread, for a message of ours that says why a call failed. Per thread: an entity
+// is made on the caller's thread, which logs its errors, and two threads making entities at once (a server's
+// threads, a test's clients) must not read each other's reasons.
+thread_local std::string t_last_error;
 
 // Cyclone calls this for its info, warning, error and fatal messages, from its own threads. A sample it cannot
 // deserialize it drops with "deserialization TOPIC/TYPE failed": that is the only trace such a sample leaves.
@@ -38,16 +39,12 @@ void on_cyclone_log(void*, const dds_log_data_t* d) {
   while (!line.empty() && (line.back() == '\n' || line.back() == ' ')) line.pop_back();
   if (line.find("deserialization " + g_cyclone_log.topic + "/") != std::string::npos)
     g_cyclone_log.undecodable.fetch_add(1, std::memory_order_relaxed);
-  if ((d->priority & (DDS_LC_ERROR | DDS_LC_FATAL)) != 0 && !line.empty()) {
-    const std::lock_guard lock(g_cyclone_log.mutex);
-    g_cyclone_log.last_error = line;
-  }
+  if ((d->priority & (DDS_LC_ERROR | DDS_LC_FATAL)) != 0 && !line.empty()) t_last_error = line;
   if (g_cyclone_log.sink != nullptr && !line.empty()) g_cyclone_log.sink(line.c_str());
 }
 
 std::string take_last_error() {
-  const std::lock_guard lock(g_cyclone_log.mutex);
-  return std::exchange(g_cyclone_log.last_error, {});
+  return std::exchange(t_last_error, {});
 }
 
 // Why a participant could not be made, from Cyclone's error line when its log comes here (route_cyclone_log).

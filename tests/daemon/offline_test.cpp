@@ -345,6 +345,35 @@ TEST_F(Offline, ASessionLogThatCouldNotBeWrittenIsSaidToBeIncomplete) {
   EXPECT_EQ(server.log().find("session log /dev/full closed"), std::string::npos) << server.log();
 }
 
+// A scene's name reaches the terminal escaped (transport's printable): an escape sequence in it would drive the
+// terminal, a newline would start a forged log line, a right-to-left override would make it read as another name.
+TEST_F(Offline, ASceneNameIsLoggedWithItsControlsEscaped) {
+  std::ofstream(path("esc.toml")) << "[scene]\nname = \"red\\u001b[31m\\nfake line\\u202e!\"\n[ladder]\nblocks = 3\n";
+  const Result r = ladderd("--offline --scene " + path("esc.toml") + " --duration 0.01");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("scene 'red\\x1b[31m\\x0afake line\\xe2\\x80\\xae!'"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find('\x1b'), std::string::npos);
+  EXPECT_EQ(r.output.find("\nfake line"), std::string::npos);
+}
+
+// A scene's name taken from its file's name need not be UTF-8, nor its path, and JSON has no way to write such
+// bytes: the run wrote its refused timeline command's place into the events and the name into the summary, and ended
+// in an uncaught exception (exit 134). They are written as U+FFFD, and both files parse.
+TEST_F(Offline, AFileNameThatIsNotUtf8IsWrittenToTheJsonFilesAsAReplacement) {
+  const std::string scene = path("bad\xff.toml");
+  std::ofstream(scene) << "[ladder]\nblocks = 3\n[[timeline]]\nt = 0.01\ncommand = \"poke\"\nblock = 2\n"
+                          "impulse = [0.001, 0]\nat = [0.5, 0]\n";  // off block 2: refused when it comes
+  const Result r = ladderd("--offline --quiet --scene '" + scene + "' --duration 0.05 --events " + path("ev.jsonl") +
+                           " --summary " + path("sum.json"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json e = json::parse(slurp(path("ev.jsonl")));
+  EXPECT_EQ(e["kind"], "command_refused");
+  EXPECT_EQ(e["where"], path("bad\xef\xbf\xbd.toml") + ":3:1");
+  const json s = json::parse(slurp(path("sum.json")));
+  EXPECT_EQ(s["scene"], "bad\xef\xbf\xbd");
+  EXPECT_EQ(s["events"]["command_refused"], 1);
+}
+
 TEST_F(Offline, KeysListsEverySceneKey) {
   const Result r = ladderd("--keys");
   EXPECT_EQ(r.code, 0);
