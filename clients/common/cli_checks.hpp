@@ -2,6 +2,8 @@
 // "Value 0 not in range 0.000000 to 1797...", the largest double written out in 300 digits.)
 #pragma once
 
+#include "ladder/sim_id.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <cerrno>
@@ -59,6 +61,12 @@ inline CLI::Validator count(std::uint64_t most) {
       "COUNT");
 }
 inline CLI::Validator non_negative(double most = HUGE_VAL) { return number_check(false, most); }
+
+// A sim id as the server takes one (ladder/sim_id.hpp): a client given another would look for, or publish as, a
+// ladder no server can be.
+inline CLI::Validator sim_id_check() {
+  return CLI::Validator([](std::string& text) { return sim_id_problem(text); }, "ID");
+}
 
 // A finite number from lo to hi (CLI::Range lets a NaN through: it compares, and every comparison with NaN is false).
 inline CLI::Validator finite_range(double lo, double hi) {

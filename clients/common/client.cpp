@@ -148,18 +148,6 @@ T if_topic(const transport::Entity& participant, const transport::Entity& topic,
   return topic ? T(participant, topic, p) : T();
 }
 
-// The scene's settings, one KEY=VALUE a line: each line made printable (transport::printable), the lines kept.
-std::string printable_lines(std::string_view text) {
-  std::string out;
-  for (std::size_t from = 0; from <= text.size();) {
-    const std::size_t end = std::min(text.find('\n', from), text.size());
-    out += printable(text.substr(from, end - from));
-    if (end < text.size()) out += '\n';
-    from = end + 1;
-  }
-  return out;
-}
-
 constexpr std::size_t kMaxScenes = 16, kMaxEarlyEvents = 1024, kMaxOwners = 4096, kMaxCandidates = 8;
 
 }  // namespace

@@ -2,6 +2,8 @@
 
 #include "rounded.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -763,9 +765,13 @@ std::string write_png(cairo_surface_t* surface, const std::string& path) {
   };
   const cairo_status_t st = cairo_surface_write_to_png_stream(surface, put, f);
   const int why = errno;
+  struct stat file {};
+  const bool regular = fstat(fileno(f), &file) == 0 && S_ISREG(file.st_mode);
   const bool closed = std::fclose(f) == 0;
   if (st == CAIRO_STATUS_SUCCESS && closed) return {};
-  std::remove(path.c_str());  // no half-written picture left behind
+  // No half-written picture left behind; but only a file is removed: --png /dev/full, run as root, removed the device
+  // (a later write then made /dev/full a plain file, and every program that relied on it being full was misled).
+  if (regular) std::remove(path.c_str());
   return st == CAIRO_STATUS_WRITE_ERROR || !closed ? std::string(std::strerror(why ? why : EIO))
                                                    : std::string(cairo_status_to_string(st));
 }

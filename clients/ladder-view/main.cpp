@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
   app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")
       ->check(ladder::transport::domain_check());
-  app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')");
+  app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')")->check(ladder::client::sim_id_check());
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
       ->check(ladder::client::positive(1e6));
   auto* png = app.add_option("--png", o.png, "write one snapshot to FILE and exit");

@@ -80,8 +80,13 @@ int run_png(const Options& o) {
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);
   cairo_t* cr = cairo_create(surface);
   draw(cr, cam, info, state, hud);
+  // (A drawing that failed, e.g. on text that was not UTF-8, leaves the context in an error state and the rest of
+  // the picture undrawn: not a snapshot to write.)
+  const cairo_status_t drawn = cairo_status(cr);
   cairo_destroy(cr);
-  const std::string why = write_png(surface, o.png);
+  const std::string why = drawn == CAIRO_STATUS_SUCCESS
+                              ? write_png(surface, o.png)
+                              : std::string("drawing failed: ") + cairo_status_to_string(drawn);
   cairo_surface_destroy(surface);
   if (!why.empty()) {
     std::cerr << "ladder-view: cannot write " << o.png << ": " << why << "\n";

@@ -63,7 +63,16 @@ class Screen {
     surface_ = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, w, h);
     cr_ = cairo_create(surface_);
   }
-  cairo_t* cairo() { return cr_; }
+  // The drawing context, made anew if a drawing left it in an error state: cairo ignores every later call on such a
+  // context, and the window's picture stopped for good (a heading that was not UTF-8 did it, before sim ids were
+  // checked).
+  cairo_t* cairo() {
+    if (cairo_status(cr_) != CAIRO_STATUS_SUCCESS) {
+      cairo_destroy(cr_);
+      cr_ = cairo_create(surface_);
+    }
+    return cr_;
+  }
   void present() {
     cairo_surface_flush(surface_);
     SDL_UpdateTexture(texture_, nullptr, cairo_image_surface_get_data(surface_),

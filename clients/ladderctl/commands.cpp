@@ -419,7 +419,7 @@ struct Values {
 void add_connection(CLI::App& app, Connection& c) {
   app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")
       ->check(ladder::transport::domain_check());
-  app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')");
+  app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')")->check(ladder::client::sim_id_check());
   // (At most a million seconds: 1e10 overflowed the clock's nanoseconds and timed out at once.)
   app.add_option("--timeout", c.timeout, "seconds to wait for the server and for each answer (default 3)")
       ->check(ladder::client::positive(1e6));
@@ -596,7 +596,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
           "SPEED"));
   r->add_option("--from", v.replay.from, "start at this sim time [s] (default 0)")
       ->check(ladder::client::non_negative());
-  r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)");
+  r->add_option("--as", v.replay.sim_id, "publish as this sim id (default 'replay', apart from live ladders)")
+      ->check(ladder::client::sim_id_check());
   r->callback([&] {
     standalone = [&v](const Connection& c) {
       ReplayOptions o = v.replay;

@@ -1,6 +1,7 @@
 #include "daemon/config.hpp"
 
 #include "daemon/startup.hpp"
+#include "ladder/sim_id.hpp"
 #include "scene/scene.hpp"
 #include "transport/dds.hpp"
 
@@ -12,7 +13,6 @@
 #include <functional>
 #include <string_view>
 #include <algorithm>
-#include <cctype>
 
 namespace ladder::daemon {
 
@@ -47,6 +47,8 @@ long long integer(const toml::node& n, long long lo, long long hi) {
 std::string text(const toml::node& n) {
   const auto* s = n.as_string();
   if (!s) throw std::invalid_argument("must be a string");
+  // (A path or a name with a NUL in it ends there for the system: the log went to another file.)
+  if (s->get().find('\0') != std::string::npos) throw std::invalid_argument("must not hold a NUL character (U+0000)");
   return s->get();
 }
 
@@ -130,11 +132,10 @@ void positive(double v, double hi, const char* key, const char* bound = nullptr)
 
 void check_config(const DaemonConfig& c) {
   const ServerConfig& s = c.server;
-  if (s.sim_id.empty() || s.sim_id.size() > 64) throw ConfigError("server.sim_id must be 1 to 64 characters", "server.sim_id");
-  for (char ch : s.sim_id)
-    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_' || ch == '.'))
-      throw ConfigError("server.sim_id '" + s.sim_id + "' may hold only letters, digits, '-', '_' and '.'",
-                        "server.sim_id");
+  if (const std::string why = sim_id_problem(s.sim_id); !why.empty()) {
+    const bool quoted = !s.sim_id.empty() && s.sim_id.size() <= kMaxSimId;  // (its characters are what is wrong)
+    throw ConfigError("server.sim_id " + (quoted ? "'" + s.sim_id + "' " : std::string()) + why, "server.sim_id");
+  }
   // At least 1 Hz: a state goes out at least once a second and at most once a tick (0.5 Hz was refused as a
   // publish rate below 1, blaming a rate the user had not given).
   if (!(s.rates.physics >= kMinPublishRate && s.rates.physics <= 100'000))

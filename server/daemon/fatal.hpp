@@ -1,6 +1,8 @@
 // The reason ladderd exits with an error, which reaches the user even with --log-level off.
 #pragma once
 
+#include "ladder/printable.hpp"
+
 #include <spdlog/spdlog.h>
 
 #include <iostream>
@@ -10,12 +12,14 @@ namespace ladder::daemon {
 
 // Logs `why` as an error and returns `code`, the exit code. With the log silenced (--log-level off, or a level above
 // error) `why` is written to standard error all the same: a run that fails must say why, and scripts that turn the
-// log off still get the reason with the code.
+// log off still get the reason with the code. Made printable (each reason is one line): it may quote a path, a key or
+// a name from a file or a client (a key "\u001b[2J\n[error] ..." cleared the screen and forged a line).
 inline int exit_with(int code, const std::string& why) {
+  const std::string text = printable(why);
   if (spdlog::should_log(spdlog::level::err))
-    spdlog::error("{}", why);
+    spdlog::error("{}", text);
   else
-    std::cerr << "ladderd: " << why << std::endl;
+    std::cerr << "ladderd: " << text << std::endl;
   return code;
 }
 

@@ -263,7 +263,7 @@ void Io::write_outbox() {
   if (recorder_) recorder_->record(out_);
   if (log_ && !out_.commands.empty() && !log_->sync(std::chrono::seconds(5)) && log_->failed_syncs() == 1)
     spdlog::error("session log {}: writing it failed or took over 5 s; until it catches up, commands are "
-                  "acknowledged before they are in it (said once)", log_->path());
+                  "acknowledged before they are in it (said once)", transport::printable(log_->path()));
   for (const AckOut& a : out_.acks) {
     written(ack_w_.try_write(a.ack), "ladder/CommandAck");
     remember(a);

@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
       if (option->count() && why.find(key) != std::string::npos)
         given += (given.empty() ? "" : " and ") + option->get_name() + " " + option->as<std::string>();
     if (!given.empty()) why += " (given as " + given + ")";
-    std::cerr << "ladderd: " << why << "\n";
+    std::cerr << "ladderd: " << printable(why) << "\n";  // (it may quote a key or a value of the file)
     return 2;
   }
 

@@ -260,7 +260,8 @@ void Physics::collect_events() {
     if (!bad.empty()) e.detail += (e.detail.empty() ? "" : "; ") + ("non-finite " + bad + " sent as 0");
   }
   for (const EventOut& e : out)
-    spdlog::info("t = {:.6f} s: {} at hinge {}{}{}", e.t, e.kind, e.hinge, e.detail.empty() ? "" : ": ", e.detail);
+    spdlog::info("t = {:.6f} s: {} at hinge {}{}{}", e.t, e.kind, e.hinge, e.detail.empty() ? "" : ": ",
+                 printable(e.detail));
   with_outbox([&](Outbox& o) { o.events.insert(o.events.end(), out.begin(), out.end()); });
 }
 

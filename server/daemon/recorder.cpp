@@ -5,12 +5,30 @@
 #include "ladderlcm/scene_t.hpp"
 #include "ladderlcm/state_t.hpp"
 #include "transport/dds.hpp"
+#include "transport/lcm_decode.hpp"
 
 #include <utility>
 
 namespace ladder::daemon {
 
 using transport::copy_text;
+
+namespace {
+
+// A text the server wrote (a command's reason, an event's kind or detail) as a log can hold it: LCM writes a C
+// string, which ends at a NUL (the bytes after one were counted but not written, and the reader refused the whole
+// log), and a reader takes at most kLogMaxText bytes of it. Longer, it is cut on a character's boundary and ends in
+// "...". (The scene's own texts, which the re-run needs whole, are bounded where a scene is read.)
+std::string loggable(std::string s) {
+  if (const std::size_t nul = s.find('\0'); nul != std::string::npos) s.resize(nul);
+  if (s.size() <= transport::kLogMaxText) return s;
+  s.resize(transport::kLogMaxText - 3);
+  while (!s.empty() && (static_cast<unsigned char>(s.back()) & 0xc0) == 0x80) s.pop_back();  // continuation bytes
+  if (!s.empty() && static_cast<unsigned char>(s.back()) >= 0xc0) s.pop_back();             // and their lead byte
+  return s + "...";
+}
+
+}  // namespace
 
 void Recorder::record(const Outbox& out) {
   const std::int64_t now = transport::now_us();
@@ -42,7 +60,7 @@ void Recorder::record(const Outbox& out) {
     m.step = static_cast<std::int64_t>(c.step);
     m.command_seq = static_cast<std::int64_t>(c.seq);
     m.accepted = c.accepted;
-    m.reason = c.reason;
+    m.reason = loggable(c.reason);
     log_.write(transport::kCommandChannel, now, m, false);
   }
   for (const EventOut& e : out.events) {
@@ -50,10 +68,10 @@ void Recorder::record(const Outbox& out) {
     m.utime = now;
     m.seq = static_cast<std::int64_t>(++logged_events_);
     m.t = e.t;
-    m.kind = e.kind;
+    m.kind = loggable(e.kind);
     m.hinge = e.hinge;
     m.energy_removed = e.energy_removed;
-    m.detail = e.detail;
+    m.detail = loggable(e.detail);
     log_.write(transport::kEventChannel, now, m, false);
   }
   const auto place = [&](const char* channel, const CheckpointOut& c) {

@@ -91,10 +91,10 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
     } catch (const std::runtime_error& e) {
       throw OutputError(e.what());
     }
-    spdlog::info("recording the session to {}", config.record);
+    spdlog::info("recording the session to {}", transport::printable(config.record));
   }
   TickLog tick_log(config);
-  if (tick_log) spdlog::info("writing one line per tick to {}", config.tick_log);
+  if (tick_log) spdlog::info("writing one line per tick to {}", transport::printable(config.tick_log));
   // With a real-time priority this (the I/O) thread runs just below the physics thread, and so do DDS's threads,
   // which inherit it when Io starts them: a thread of the normal scheduler could otherwise hold the I/O side up while
   // the physics thread waits for the hand-off's lock.
@@ -131,15 +131,16 @@ int run_server(const ServerConfig& config, std::unique_ptr<Session> session, con
   }
   physics_thread.join();
   if (!tick_log.complete())
-    spdlog::warn("the tick log {} is incomplete: writing to it failed", config.tick_log);
+    spdlog::warn("the tick log {} is incomplete: writing to it failed", transport::printable(config.tick_log));
   if (log) {
     // (A session with no command never synced: a log on a full disk closed without a word.)
     const bool complete = log->sync(std::chrono::seconds(5));
     log.reset();  // writes what is queued, flushes, closes
     if (complete)
-      spdlog::info("session log {} closed", config.record);
+      spdlog::info("session log {} closed", transport::printable(config.record));
     else
-      spdlog::warn("the session log {} is incomplete: writing to it failed or took over 5 s", config.record);
+      spdlog::warn("the session log {} is incomplete: writing to it failed or took over 5 s",
+                   transport::printable(config.record));
   }
   if (physics_error) std::rethrow_exception(physics_error);
   return 0;

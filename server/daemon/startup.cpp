@@ -114,7 +114,8 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
     throw std::runtime_error("--record with --resume is not supported: a new log would start mid-session; "
                              "resume without --record, or record a new session");
   const SessionLog log = read_session_log(path);
-  if (!log.damage.empty()) spdlog::warn("{}: {}; resuming from what came before", path, log.damage);
+  if (!log.damage.empty())
+    spdlog::warn("{}: {}; resuming from what came before", printable(path), printable(log.damage));
   if (log.checkpoints.empty()) throw std::runtime_error(path + ": no checkpoint to resume from");
   // To the end of what was recorded: the last checkpoint, the states after it (checked), and every command after
   // it, so that each command the killed server acknowledged (logged before its ack went out) is applied again.
@@ -138,7 +139,7 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
   session->set_taken_before({r.last_command_seq - refused, refused});
   spdlog::info("resumed from {} at t = {:.6f} s (generation {}, step {}, {} commands taken) after replaying {} "
                "commands past the last checkpoint; {} states and {} checkpoints checked on the way; paused",
-               path, session->sim().time(), session->generation(), session->sim().steps(), r.last_command_seq,
+               printable(path), session->sim().time(), session->generation(), session->sim().steps(), r.last_command_seq,
                r.commands_after_checkpoint, r.states, r.checkpoints);
   return session;
 }
@@ -150,9 +151,10 @@ int run_resimulation(const std::string& path, bool progress) {
   } catch (const std::exception& e) {
     return exit_with(2, e.what());
   }
-  if (!log.damage.empty()) spdlog::warn("{}: {}; re-running what came before", path, log.damage);
-  spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events{}", path, log.scenes.size(),
-               log.commands.size(), log.states.size(), log.checkpoints.size(), log.events,
+  if (!log.damage.empty())
+    spdlog::warn("{}: {}; re-running what came before", printable(path), printable(log.damage));
+  spdlog::info("{}: {} scene(s), {} commands, {} states, {} checkpoints, {} events{}", printable(path),
+               log.scenes.size(), log.commands.size(), log.states.size(), log.checkpoints.size(), log.events,
                log.failures.empty() ? std::string() : fmt::format(", {} failures", log.failures.size()));
   std::unique_ptr<Session> session;
   Resimulation r;

@@ -2,6 +2,7 @@
 // transport, the offline runner and the clients use it without linking one another.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -62,6 +63,19 @@ inline std::string printable(std::string_view text) {
     }
     out.append(text.substr(i, len));
     i += len;
+  }
+  return out;
+}
+
+// Lines of text each made printable, the newlines between them kept (a scene's settings, one KEY=VALUE a line; an
+// error message that lists things).
+inline std::string printable_lines(std::string_view text) {
+  std::string out;
+  for (std::size_t from = 0; from <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', from), text.size());
+    out += printable(text.substr(from, end - from));
+    if (end < text.size()) out += '\n';
+    from = end + 1;
   }
   return out;
 }

@@ -333,6 +333,10 @@ bool to_bool(const toml::node& n, const Site& s) {
 std::string to_text(const toml::node& n, const Site& s) {
   const auto* t = n.as_string();
   if (!t) s.fail(n, s.name + " must be a string, not " + a_type(n));
+  // A text is sent over DDS and recorded as a C string, which ends at a NUL: a name with one in it reached the
+  // clients cut short and made the session log unreadable.
+  if (t->get().find('\0') != std::string::npos)
+    s.fail(n, s.name + " must not hold a NUL character (U+0000)");
   return t->get();
 }
 
@@ -466,6 +470,9 @@ void assign_value(toml::table& target, std::string_view leaf, std::string_view v
 }
 
 Origins apply_overrides(toml::table& root, const std::vector<std::string>& overrides) {
+  if (overrides.size() > kMaxOverrides)
+    throw SceneError("at most " + std::to_string(kMaxOverrides) + " --set overrides (got " +
+                     std::to_string(overrides.size()) + ")");
   Origins origins;
   for (const std::string& text : overrides) {
     const auto fail = [&](const std::string& message) { throw SceneError("--set " + text + ": " + message); };
@@ -881,6 +888,9 @@ Scene parse_scene(std::string_view toml_text, const std::string& source_name,
   Scene s;
   s.source = source_name;
   r.get("scene.name", s.name);
+  if (s.name.size() > kMaxSceneName)
+    r.site("scene.name").fail(*r.find("scene.name"), "scene.name must be at most " + std::to_string(kMaxSceneName) +
+                                                         " bytes long (got " + std::to_string(s.name.size()) + ")");
   if (s.name.empty()) s.name = std::filesystem::path(source_name).stem().string();  // a title all the same
   r.get("scene.description", s.description);
   read_ladder(r, s.ladder);

@@ -275,5 +275,6 @@ std::string text_of(const char (&src)[N]) {
 
 // printable(text): text from a peer made safe for a log line or a terminal (ladder/printable.hpp).
 using ladder::printable;
+using ladder::printable_lines;
 
 }  // namespace ladder::transport

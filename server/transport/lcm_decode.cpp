@@ -127,7 +127,7 @@ void read(Cursor& c, ladderlcm::scene_t& m) {
   m.num_overrides = c.count("num_overrides", kLogMaxOverrides, "the most overrides a log may hold", 5);
   m.overrides.clear();
   m.overrides.reserve(static_cast<std::size_t>(m.num_overrides));
-  for (std::int32_t i = 0; i < m.num_overrides; ++i) m.overrides.push_back(c.text("overrides", kLogMaxText));
+  for (std::int32_t i = 0; i < m.num_overrides; ++i) m.overrides.push_back(c.text("overrides", kLogMaxSceneText));
   m.clear_timeline = c.boolean("clear_timeline");
   // blocks counts the masses, which come after five more fields: 8 bytes each at least.
   m.blocks = c.count("blocks", kLogMaxBlocks, kBlocksWhy, 8);

@@ -441,7 +441,11 @@ TEST_F(Ladderctl, BadInputIsRefusedBeforeAnythingIsSent) {
         Case{"plot " + std::string(LADDER_BINARY_DIR) + " --for 1", "it is a folder"},
         Case{"plot " + dir + ".png --log " + dir + "-cut.lcmlog", "no state in " + dir + "-cut.lcmlog"},
         Case{"replay --as cut-" + std::to_string(getpid()) + " " + dir + "-cut.lcmlog",
-             "-cut.lcmlog: no state in the log; nothing to replay"}}) {
+             "-cut.lcmlog: no state in the log; nothing to replay"},
+        // A sim id no server can have: one of 65 characters was published cut to 61 and "...", under which no
+        // client looked for it; one that was not UTF-8 stopped the viewer's picture.
+        Case{"replay --as " + std::string(65, 'r') + " " + dir + "-cut.lcmlog", "--as: must be 1 to 64 characters"},
+        Case{"replay --as 'r*' " + dir + "-cut.lcmlog", "--as: may hold only letters, digits, '-', '_' and '.'"}}) {
     const Result r = ctl(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;

@@ -17,8 +17,10 @@
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -866,6 +868,23 @@ TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
   EXPECT_NE(stuck.output.find(" s for 2 s (--timeout), short of --at "), std::string::npos) << stuck.output;
 }
 
+// A snapshot that cannot be written says why, exits 1 and leaves no half-written file; but only a file is removed:
+// `--png /dev/full` run as root removed the device, and a later write made /dev/full a plain file. (Through a link
+// here, so that a viewer that still removed what it had opened would take the link, not the machine's device.)
+TEST_F(View, APngThatCannotBeWrittenSaysWhyAndLeavesADeviceInPlace) {
+  const std::string link = out_ + "-full.png";
+  std::remove(link.c_str());
+  ASSERT_EQ(::symlink("/dev/full", link.c_str()), 0) << std::strerror(errno);
+  const Result r = viewer("--png " + link);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("ladder-view: cannot write " + link + ": No space left on device"), std::string::npos)
+      << r.output;
+  struct stat st {};
+  EXPECT_EQ(::lstat(link.c_str(), &st), 0) << "the link was removed";
+  EXPECT_TRUE(S_ISLNK(st.st_mode));
+  std::remove(link.c_str());
+}
+
 TEST_F(View, NoServerGivesTheTimeoutMessageAndCodeThree) {
   const Result r = shell(kViewer + " --domain " + std::to_string(domain_) + " --sim-id nobody-here --timeout 1 --png " +
                          out_ + ".png");
@@ -902,6 +921,9 @@ TEST_F(View, BadOptionsAreRefusedWithTheirReason) {
                         Case{" --png ''", "argument 2 is empty (after '--png')"},
                         Case{png + " --security /etc/passwd", "/etc/passwd: a file, not an identity folder"},
                         Case{png + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+                        // A sim id no server can have (a heading that was not UTF-8 stopped the window's picture).
+                        Case{png + " --sim-id 'a b'", "--sim-id: may hold only letters, digits, '-', '_' and '.'"},
+                        Case{png + " --sim-id " + std::string(65, 'a'), "--sim-id: must be 1 to 64 characters"},
                         // A mistyped option: named, with the nearest one (CLI11 had said "The following arguments
                         // were not expected: 230 --domian", without the program's name).
                         Case{png + " --domian 230", "ladder-view: unknown option '--domian' (did you mean '--domain'?)\n"

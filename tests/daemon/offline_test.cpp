@@ -270,11 +270,19 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                              ":2:14: server.scenes_dir must be a folder of scenes: '"},
                         Case{"[server]\nscene = \"nothing-here\"\n",
                              ":2:9: server.scene nothing-here: no such file, and no scene of that name in "},
-                        Case{"[server\n", ":1:8: "}}) {
+                        Case{"[server\n", ":1:8: "},
+                        // A NUL ends a path for the system: the log went to another file.
+                        Case{"[log]\nfile = \"out\\u0000.txt\"\n", ":2:8: log.file must not hold a NUL character (U+0000)"},
+                        // What the file says is quoted escaped: an escape sequence, a newline, a bidi override.
+                        Case{"[server]\n\"\\u001b[2J\\nfake\" = 1\n", ":2:1: unknown key server.\\x1b[2J\\x0afake (keys: "},
+                        Case{"[server]\nsim_id = \"a\\u202eb\"\n",
+                             ":2:10: server.sim_id 'a\\xe2\\x80\\xaeb' may hold only letters, digits, '-', '_' and '.'"}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
     const Result r = ladderd("--config " + path("ladderd.toml"));
     EXPECT_EQ(r.code, 2) << c.text << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.text << "\n" << r.output;
+    EXPECT_EQ(r.output.find("\nfake"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("\u202e"), std::string::npos) << r.output;
   }
 }
 

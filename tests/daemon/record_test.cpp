@@ -4,6 +4,7 @@
 #include "client.hpp"
 #include "daemon/resimulate.hpp"
 #include "process.hpp"
+#include "transport/lcm_decode.hpp"
 #include "transport/lcm_log.hpp"
 
 #include <gtest/gtest.h>
@@ -758,6 +759,36 @@ TEST_F(Record, ALogRecordedAtAThousandTimesRealTimeHasACheckpointEverySecondAndR
   ASSERT_GE(log.checkpoints.size(), 30u);
   for (std::size_t i = 1; i < log.checkpoints.size(); ++i)
     EXPECT_LE(log.checkpoints[i].sim_time - log.checkpoints[i - 1].sim_time, 1.0 + 0.001 + 1e-9) << "checkpoint " << i;
+  const Result r = shell(kLadderd + " --offline --resimulate " + log_);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
+}
+
+// A log holds at most 64 KiB of a reason and no NUL in a text (docs/recording.md): the server wrote a longer reason
+// whole (a `load` refused for a key of 70 000 characters quotes it), and both readers then refused the whole log. It
+// is recorded cut, ending in "...", and the log re-runs. A scene whose name holds a NUL, which made a scene record
+// that no reader took, is refused where it is read.
+TEST_F(Record, AReasonLongerThanALogHoldsIsRecordedCutAndTheLogReRuns) {
+  const fs::path scenes = dir_ / "scenes";
+  fs::create_directories(scenes);
+  std::ofstream(scenes / "long-key.toml") << "[ladder]\n" << std::string(70'000, 'k') << " = 1\n";
+  std::ofstream(scenes / "nul-name.toml") << "[scene]\nname = \"a\\u0000b\"\n";
+  std::ofstream(dir_ / "ladderd.toml") << "[server]\nscenes_dir = \"" << scenes.string() << "\"\n";
+  start({"--record", log_, "--config", (dir_ / "ladderd.toml").string()});
+  const client::Ack long_key = client_->call(cmd::load("long-key"), kAnswer);
+  EXPECT_FALSE(long_key.accepted);
+  EXPECT_NE(long_key.reason.find("unknown key"), std::string::npos) << long_key.reason;
+  const client::Ack nul = client_->call(cmd::load("nul-name"), kAnswer);
+  EXPECT_FALSE(nul.accepted);
+  EXPECT_NE(nul.reason.find("nul-name.toml:2:8: scene.name must not hold a NUL character (U+0000)"), std::string::npos)
+      << nul.reason;
+  applied_ = nul.command_seq;
+  run_until(0.1);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const daemon::SessionLog log = daemon::read_session_log(log_);
+  ASSERT_EQ(log.commands.size(), 2u);
+  EXPECT_EQ(log.commands[0].reason.size(), transport::kLogMaxText);
+  EXPECT_TRUE(log.commands[0].reason.ends_with("kkk...")) << log.commands[0].reason.substr(0, 200);
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;

@@ -413,6 +413,24 @@ TEST(Errors, NonFiniteNumbersAreRefused) {
   expect_error("[sim]\ngravity = [0, inf]\n", "<string>:2:15: ", {"sim.gravity[1] must be finite (got inf)"});
 }
 
+// A text is sent over DDS and recorded in LCM as a C string, which ends at a NUL: a name with one reached the clients
+// cut short and made the session log unreadable, and a name of 70 000 bytes was recorded but refused by the log's
+// readers (64 KiB). Refused where they are read, with their place.
+TEST(Errors, ATextWithANulOrANameTooLongIsRefused) {
+  expect_error("[scene]\nname = \"a\\u0000b\"\n", "<string>:2:8: ", {"scene.name must not hold a NUL character (U+0000)"});
+  expect_error("[sim]\nintegrator = \"midpoint\\u0000\"\n", "<string>:2:14: ",
+               {"sim.integrator must not hold a NUL character"});
+  const std::string longest(1024, 'n');
+  EXPECT_EQ(error_of("[scene]\nname = \"" + longest + "\"\n"), "");
+  expect_error("[scene]\nname = \"" + longest + "n\"\n", "<string>:2:8: ",
+               {"scene.name must be at most 1024 bytes long (got 1025)"});
+  expect_error("[ladder]\nblocks = 3\n", "--set scene.name=", {"scene.name must be at most 1024 bytes long (got 1025)"},
+               {"scene.name=" + longest + "n"});
+  EXPECT_EQ(error_of("[ladder]\nblocks = 3\n", std::vector<std::string>(10'000, "sim.dt=0.001")), "");
+  EXPECT_EQ(error_of("[ladder]\nblocks = 3\n", std::vector<std::string>(10'001, "sim.dt=0.001")),
+            "at most 10000 --set overrides (got 10001)");
+}
+
 TEST(Errors, NegativeMass) {
   expect_error("[ladder]\nmasses = [0.1, -0.2, 0.3]\n", "<string>:2:16: ",
                {"ladder.masses[1] must be >= 1e-06 and <= 1000000 (got -0.2)"});
