@@ -3,6 +3,7 @@
 #include "rounded.hpp"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -764,14 +765,19 @@ std::string write_png(cairo_surface_t* surface, const std::string& path) {
                                                                                   : CAIRO_STATUS_WRITE_ERROR;
   };
   const cairo_status_t st = cairo_surface_write_to_png_stream(surface, put, f);
-  const int why = errno;
+  int why = errno;
   struct stat file {};
   const bool regular = fstat(fileno(f), &file) == 0 && S_ISREG(file.st_mode);
+  if (st != CAIRO_STATUS_SUCCESS && regular) (void)!ftruncate(fileno(f), 0);  // (nothing half-written through a link)
+  errno = 0;
   const bool closed = std::fclose(f) == 0;
   if (st == CAIRO_STATUS_SUCCESS && closed) return {};
-  // No half-written picture left behind; but only a file is removed: --png /dev/full, run as root, removed the device
-  // (a later write then made /dev/full a plain file, and every program that relied on it being full was misled).
-  if (regular) std::remove(path.c_str());
+  if (st == CAIRO_STATUS_SUCCESS) why = errno;  // (a small picture fails only when the buffer is flushed, at fclose)
+  // No half-written picture left behind; but only a file of ours is removed, never what the path names through a
+  // link nor a device: --png /dev/full, run as root, removed the device (a later write then made /dev/full a plain
+  // file, and every program that relied on it being full was misled).
+  struct stat named {};
+  if (regular && lstat(path.c_str(), &named) == 0 && S_ISREG(named.st_mode)) std::remove(path.c_str());
   return st == CAIRO_STATUS_WRITE_ERROR || !closed ? std::string(std::strerror(why ? why : EIO))
                                                    : std::string(cairo_status_to_string(st));
 }

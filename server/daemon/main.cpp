@@ -75,6 +75,10 @@ int main(int argc, char** argv) {
   app.add_flag("--quiet", quiet, "no progress lines (offline)");
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
   app.set_version_flag("--version", std::string("ladderd ") + kVersion);
+  // CLI11's own words, with what it quotes of the command line made printable (a path holding an escape sequence).
+  app.failure_message([](const CLI::App* a, const CLI::Error& e) {
+    return printable_lines(CLI::FailureMessage::simple(a, e));
+  });
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -117,7 +121,7 @@ int main(int argc, char** argv) {
       if (option->count() && why.find(key) != std::string::npos)
         given += (given.empty() ? "" : " and ") + option->get_name() + " " + option->as<std::string>();
     if (!given.empty()) why += " (given as " + given + ")";
-    std::cerr << "ladderd: " << printable(why) << "\n";  // (it may quote a key or a value of the file)
+    std::cerr << "ladderd: " << printable(why, false) << "\n";  // (it may quote a key or a value of the file)
     return 2;
   }
 

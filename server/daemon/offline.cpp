@@ -113,7 +113,7 @@ int run_offline(const OfflineOptions& o) {
       for (const model::Event& e : sim->take_events()) {
         ++counts[model::to_string(e.kind)];
         if (out.events) *out.events << json_text(event_json(e)) << '\n';
-        if (e.kind == model::EventKind::SolverWarning) spdlog::warn("t = {:.4f} s: {}", e.t, e.detail);
+        if (e.kind == model::EventKind::SolverWarning) spdlog::warn("t = {:.4f} s: {}", e.t, printable(e.detail));
       }
       for (const scene::Refusal& r : sim->take_refusals()) {
         ++counts["command_refused"];

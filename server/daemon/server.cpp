@@ -33,9 +33,9 @@ void cyclone_line(const char* message) {
   bool shown = false;
   const std::uint64_t hidden = limiter.admit(Clock::now(), shown);
   if (hidden > 0)  // (the first line of a new second is always shown)
-    spdlog::warn("cyclone: {} (and {} more lines not shown)", message, hidden);
+    spdlog::warn("cyclone: {} (and {} more lines not shown)", transport::printable(message), hidden);
   else if (shown)
-    spdlog::warn("cyclone: {}", message);
+    spdlog::warn("cyclone: {}", transport::printable(message));  // (a line of Cyclone's may quote a peer's text)
 }
 
 // Another ladder that answers to this sim id on the domain (a live ladderd, or `ladderctl replay`): two publishers of

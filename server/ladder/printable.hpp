@@ -15,8 +15,10 @@ namespace ladder {
 // part of valid UTF-8 written as \xNN, the bidirectional controls too (U+202A to U+202E, U+2066 to U+2069, the marks
 // U+200E, U+200F and U+061C: they reorder what a terminal shows, so that a name reads as another), and a backslash
 // as \\ so that the escape cannot be forged either. What comes out is valid UTF-8 (cairo, which draws the viewer's
-// text, needs that: with a scene name that was not, the window's picture stopped for good).
-inline std::string printable(std::string_view text) {
+// text, needs that: with a scene name that was not, the window's picture stopped for good). With `backslash` false
+// a backslash is kept as it is: for a message that may quote text already made printable (an error that names a
+// peer's scene), which would otherwise show its escapes doubled.
+inline std::string printable(std::string_view text, bool backslash = true) {
   std::string out;
   out.reserve(text.size());
   const auto escape = [&out](unsigned char c) {
@@ -27,7 +29,7 @@ inline std::string printable(std::string_view text) {
   };
   for (std::size_t i = 0; i < text.size();) {
     const auto c = static_cast<unsigned char>(text[i]);
-    if (c == '\\') {
+    if (c == '\\' && backslash) {
       out += "\\\\";
       ++i;
       continue;

@@ -849,12 +849,16 @@ std::string read_file(const std::string& path) {
   std::error_code ec;
   // An ifstream opens a directory without complaint and then reads nothing.
   if (std::filesystem::is_directory(path, ec)) fail("it is a directory");
+  // (A session log holds a scene's text up to this size: a larger one would be recorded and then refused.)
+  const std::string too_large = "it is larger than " + std::to_string(kMaxSceneFile >> 20) + " MiB";
+  if (const auto size = std::filesystem::file_size(path, ec); !ec && size > kMaxSceneFile) fail(too_large);
   errno = 0;
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(errno != 0 ? std::generic_category().message(errno) : "unknown error");
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) fail("read error");
+  if (text.view().size() > kMaxSceneFile) fail(too_large);  // (a file whose size was not known before)
   return text.str();
 }
 

@@ -26,7 +26,7 @@ namespace ladder::transport {
 inline constexpr std::int32_t kLogMaxBlocks = kMaxBlocks;   // what a scene file may ask for (ladder.blocks)
 inline constexpr std::int32_t kLogMaxOverrides = kMaxOverrides;  // --set overrides of one scene
 // A scene file's text, and each --set override of it (ladder.masses may be long): 1e6 masses take about 8 MB.
-inline constexpr std::size_t kLogMaxSceneText = 64u << 20;
+inline constexpr std::size_t kLogMaxSceneText = kMaxSceneFile;
 inline constexpr std::size_t kLogMaxText = 64u << 10;       // every other string (names, reasons, details)
 inline constexpr double kLogMaxSimTime = 1e7;               // [s] of simulated time in one scene (116 days)
 // Steps in one scene: kLogMaxSimTime at the smallest time step a scene may have (sim.dt >= 1e-7 s).

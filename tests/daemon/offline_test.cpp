@@ -241,10 +241,15 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                              "cannot create the session log '/no/such/dir/s.lcmlog': No such file or directory"},
                         Case{scene + " --publish-rate 0.5",
                              "server.publish_rate must be >= 1 and at most server.physics_rate (0.5 states a second "
-                             "against 1000 ticks a second) (given as --publish-rate 0.5)"}}) {
+                             "against 1000 ticks a second) (given as --publish-rate 0.5)"},
+                        // What the command line gave is quoted escaped, by CLI11's checks as by ours.
+                        Case{"--config \"$(printf 'no\\033[2Jsuch')\"", "--config: File does not exist: no\\x1b[2Jsuch"},
+                        Case{scene + " --record \"$(printf '/no/such\\033[2J/s')\"",
+                             "cannot create the session log '/no/such\\x1b[2J/s'"}}) {
     const Result r = ladderd(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.words), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_EQ(r.output.find('\x1b'), std::string::npos) << c.args << "\n" << r.output;
   }
 }
 
@@ -353,7 +358,7 @@ TEST_F(Offline, ASessionLogThatCouldNotBeWrittenIsSaidToBeIncomplete) {
   EXPECT_EQ(server.log().find("session log /dev/full closed"), std::string::npos) << server.log();
 }
 
-// A scene's name reaches the terminal escaped (transport's printable): an escape sequence in it would drive the
+// A scene's name reaches the terminal escaped (ladder/printable.hpp): an escape sequence in it would drive the
 // terminal, a newline would start a forged log line, a right-to-left override would make it read as another name.
 TEST_F(Offline, ASceneNameIsLoggedWithItsControlsEscaped) {
   std::ofstream(path("esc.toml")) << "[scene]\nname = \"red\\u001b[31m\\nfake line\\u202e!\"\n[ladder]\nblocks = 3\n";

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -510,6 +513,18 @@ TEST(Errors, FileThatCannotBeOpened) {
   } catch (const SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot open scene file (it is a directory)"), std::string::npos);
   }
+  // Larger than a session log holds a scene's text (it would be recorded, and the log then refused): a sparse file.
+  const std::filesystem::path big =
+      std::filesystem::temp_directory_path() / ("big-" + std::to_string(getpid()) + ".toml");
+  std::ofstream(big) << "[ladder]\nblocks = 3\n";
+  std::filesystem::resize_file(big, (64u << 20) + 1);
+  try {
+    load_scene(big.string());
+    FAIL() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), big.string() + ": cannot open scene file (it is larger than 64 MiB)");
+  }
+  std::filesystem::remove(big);
 }
 
 TEST(Errors, FileErrorsNameTheFile) {

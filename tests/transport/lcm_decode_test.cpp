@@ -145,6 +145,17 @@ TEST(LcmDecode, EveryTypeRoundTripsThroughLcmGensEncoder) {
   refused.a = std::nan("");  // a refused command is logged as it came
   refused.reason = "impulse: must be finite";
   round_trip(refused);
+  // An override may be as long as a scene's text (`--set ladder.masses=[...]` of 10 000 blocks is about 80 KB; one
+  // over 64 KiB was refused, the log with it), a name only as long as every other text.
+  ladderlcm::scene_t masses = a_scene();
+  masses.overrides = {"ladder.masses=[" + std::string(70'000, '1') + "]"};
+  masses.num_overrides = 1;
+  round_trip(masses);
+  ladderlcm::scene_t named = a_scene();
+  named.name = std::string(70'000, 'n');
+  ladderlcm::scene_t out;
+  EXPECT_EQ(transport::decode_lcm(encode(named), out),
+            "string name of 70000 bytes is longer than 65536 (the most a log's name may hold)");
 }
 
 // Cut short anywhere, or with a byte too many, no message decodes; the message names what is missing.
