@@ -9,13 +9,13 @@
 #include "replay.hpp"
 #include "scene/scene.hpp"
 #include "session_plot.hpp"
+#include "stop_signals.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <functional>
 #include <iostream>
@@ -284,9 +284,7 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
     std::fflush(stdout);
   }
   g_interrupted = false;
-  struct sigaction sa {}, old {};
-  sa.sa_handler = on_interrupt;
-  sigaction(SIGINT, &sa, &old);
+  const client::StopSignals stop(on_interrupt);
   std::uint64_t seen_state = 0;
   const auto min_gap = std::chrono::duration<double>(rate > 0 ? 1.0 / rate : 0);
   auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
@@ -349,7 +347,6 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
     }
     std::fflush(stdout);
   }
-  sigaction(SIGINT, &old, nullptr);
   return kAccepted;
 }
 

@@ -1,6 +1,7 @@
 #include "replay.hpp"
 
 #include "directory.hpp"
+#include "stop_signals.hpp"
 #include "ladderlcm/event_t.hpp"
 #include "ladderlcm/scene_t.hpp"
 #include "ladderlcm/state_t.hpp"
@@ -13,7 +14,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <map>
@@ -190,9 +190,7 @@ int replay(const ReplayOptions& o) {
   }
   Publisher out(o.domain, o.sim_id);
   g_stop = false;
-  struct sigaction sa {}, old {};
-  sa.sa_handler = on_stop;
-  sigaction(SIGINT, &sa, &old);
+  const client::StopSignals stop(on_stop);
   std::cout << "replaying " << o.log << " as sim id '" << o.sim_id << "' on DDS domain " << o.domain
             << " (Ctrl-C to stop)\n";
   Pacer pacer(o.speed);
@@ -260,7 +258,6 @@ int replay(const ReplayOptions& o) {
     std::cerr << "ladderctl: " << ex.what() << "; the replay stops there\n";
     rc = 2;
   }
-  sigaction(SIGINT, &old, nullptr);
   if (!reader->damage().empty()) std::cerr << "ladderctl: " << o.log << ": " << reader->damage() << "\n";
   if (pacer.shortened())
     std::cerr << "ladderctl: " << o.log << ": " << pacer.shortened() << " pause(s) longer than "

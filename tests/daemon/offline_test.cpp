@@ -243,7 +243,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                              "server.publish_rate must be >= 1 and at most server.physics_rate (0.5 states a second "
                              "against 1000 ticks a second) (given as --publish-rate 0.5)"},
                         // What the command line gave is quoted escaped, by CLI11's checks as by ours.
-                        Case{"--config \"$(printf 'no\\033[2Jsuch')\"", "--config: File does not exist: no\\x1b[2Jsuch"},
+                        Case{"--config \"$(printf 'no\\033[2Jsuch')\"",
+                             "--config: File does not exist: no\\x1b[2Jsuch"},
                         Case{scene + " --record \"$(printf '/no/such\\033[2J/s')\"",
                              "cannot create the session log '/no/such\\x1b[2J/s'"}}) {
     const Result r = ladderd(c.args);

@@ -263,6 +263,49 @@ TEST_F(Server, SigtermStopsWithinOneSecondAndSaysWhy) {
   EXPECT_NE(server_->log().find("SIGTERM"), std::string::npos) << server_->log();
 }
 
+// Clients that stopped answering (suspended watchers of events and of Stats, the server's reliable writers holding
+// samples they have not acknowledged) hold a stopping server at most the shipped configuration's WriterLingerDuration
+// a writer, 100 ms: with Cyclone's default of 1 s it stopped 2 s after SIGTERM. A watcher ended by SIGTERM (`timeout`,
+// `kill`) leaves as Ctrl-C makes it, exit 0 and its participant deleted: killed by the signal, it left its readers
+// behind.
+TEST_F(Server, SuspendedWatchersDoNotHoldTheServerAtItsStop) {
+  start();
+  const std::string ctl = std::string(LADDER_BINARY_DIR) + "/clients/ladderctl";
+  const std::vector<std::string> where{ctl, "--domain", std::to_string(domain_), "--sim-id", sim_id_, "watch"};
+  const auto watcher = [&](const std::string& what) {
+    std::vector<std::string> args = where;
+    args.push_back(what);
+    return std::make_unique<Process>(args, log_path_ + "." + what);
+  };
+  const auto shows = [](const Process& p, const std::string& words) {
+    const auto deadline = Clock::now() + kStart;
+    while (p.log().find(words) == std::string::npos && Clock::now() < deadline)
+      std::this_thread::sleep_for(Millis(20));
+    return p.log().find(words) != std::string::npos;
+  };
+  const auto events = watcher("events"), stats = watcher("stats"), ended = watcher("stats");
+  ASSERT_TRUE(shows(*events, "events of sim id")) << events->log();
+  ASSERT_TRUE(shows(*stats, "real-time")) << stats->log();
+  ASSERT_TRUE(shows(*ended, "real-time")) << ended->log();
+  ended->signal(SIGTERM);
+  const auto ended_status = ended->wait_exit(Millis(5000));
+  ASSERT_TRUE(ended_status.has_value()) << ended->log();
+  EXPECT_TRUE(WIFEXITED(*ended_status) && WEXITSTATUS(*ended_status) == 0) << *ended_status;
+  expect_accepted(cmd::tip());  // its flip-flops come after the watchers are suspended
+  events->signal(SIGSTOP);
+  stats->signal(SIGSTOP);
+  std::this_thread::sleep_for(Millis(1500));  // events and Stats written to them meanwhile, never acknowledged
+  const auto t0 = Clock::now();
+  server_->signal(SIGTERM);
+  const auto status = server_->wait_exit(Millis(5000));
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  ASSERT_TRUE(status.has_value()) << "still running 5 s after SIGTERM";
+  EXPECT_LT(took, 1.0) << server_->log();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0);
+  events->signal(SIGCONT);
+  stats->signal(SIGCONT);
+}
+
 // A second ladderd started with the sim id a running one serves on the same domain (`scripts/run` run again in another
 // terminal) refuses to start, naming the other, and publishes nothing: the two had served side by side, and every
 // client saw their states mixed (sim time 41 s, then 12 s) and both took its commands. The first one serves on.
