@@ -23,6 +23,7 @@
 #include <cairo.h>
 
 #include <array>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -65,8 +66,8 @@ struct Camera {
 };
 
 // The default 3-D view: from the front-right, a little above, so that each block's wide face and its ribbons face
-// the viewer at rest. [rad]
-inline constexpr double kDefaultYaw = -0.87, kDefaultPitch = 0.21;  // -50 deg, 12 deg
+// the viewer at rest: -50 and 12 degrees, as --view gives them. [rad]
+inline constexpr double kDefaultYaw = -50 * std::numbers::pi / 180, kDefaultPitch = 12 * std::numbers::pi / 180;
 
 // The part of the segment a-b (screen points) inside the image and a margin of that many pixels around it, found
 // by Liang-Barsky: a and b are moved to its ends. False when no part of it is there, or a point is not a number.

@@ -207,8 +207,8 @@ void print_stats(const ladder_msg_Stats& s, bool json) {
     j.field("write_failures", s.write_failures).field("states_published", s.states_published);
     std::printf("%s\n", j.done().c_str());
   } else {
-    std::printf("t = %.3f s  real-time factor %.3f  step p50 %.1f us p99 %.1f us  tick late p99 %.0f us  missed %llu"
-                "  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited, %llu "
+    std::printf("t = %.3f s  real-time factor %.3f  step p50 %.1f us p99 %.1f us  tick late p99 %.0f us  missed in "
+                "all %llu  hinge error %.2g m  energy %.6f J  commands %llu (%llu refused, %llu rate-limited, %llu "
                 "unanswered)\n",
                 s.sim_time, s.real_time_factor, s.step_p50_us, s.step_p99_us, s.late_p99_us,
                 static_cast<unsigned long long>(s.missed_deadlines), s.max_hinge_error, s.energy,
@@ -371,7 +371,9 @@ int status(Client& client, const Connection& c) {
                 info->publish_rate, info->real_time_factor);
   if (stats) {
     std::printf("measured over the last %.1f s: real-time factor %.3f, step p50 %.1f us p99 %.1f us max %.1f us,\n"
-                "  tick lateness p50 %.0f us p99 %.0f us max %.0f us, missed ticks %llu, largest hinge error %.2g m\n",
+                "  tick lateness p50 %.0f us p99 %.0f us max %.0f us\n"
+                "since the start: %llu ticks missed (started more than a period late); since the scene was loaded: "
+                "largest hinge error %.2g m\n",
                 stats->window, stats->real_time_factor, stats->step_p50_us, stats->step_p99_us, stats->step_max_us,
                 stats->late_p50_us, stats->late_p99_us, stats->late_max_us,
                 static_cast<unsigned long long>(stats->missed_deadlines), stats->max_hinge_error);
@@ -651,7 +653,12 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   std::vector<std::string> words = args;
   if (const auto at = command_at(words)) {
     const auto& names = command_names();
-    if (std::find(names.begin(), names.end(), words[*at]) == names.end()) {
+    // (A word after an option ladderctl does not know is more likely that option's value than a command: `--domian
+    // 201 tip` is a mistyped option, which the parse below names, not an unknown command '201'.)
+    const bool after_unknown_option = *at > 0 && words[*at - 1].starts_with("-") &&
+                                      words[*at - 1].find('=') == std::string::npos &&
+                                      !app.get_option_no_throw(words[*at - 1]);
+    if (std::find(names.begin(), names.end(), words[*at]) == names.end() && !after_unknown_option) {
       std::cerr << (interactive ? "" : "ladderctl: ") << unknown_command(words[*at]) << "\n";
       return kUsage;
     }

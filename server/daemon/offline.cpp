@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 
 namespace ladder::daemon {
@@ -170,9 +171,23 @@ int run_offline(const OfflineOptions& o) {
                                   {"motion", lost.motion},                     {"total", lost.total()}};
   const int flips = ladder.flip_flops();
   summary["energy_lost_per_flip_flop_J"] = flips > 0 ? json(ladder.lost_by_last_flip() / flips) : json(nullptr);
+  summary["energy_put_in_J"] = ladder.work_put_in();
+  // What the run was, so that two runs' summaries say how they differed: the file, the --set overrides, and every
+  // live setting in force (a preset's integrator, step and sub-steps included).
+  summary["source"] = sc.source;
+  summary["overrides"] = sc.overrides;
+  json settings = json::object();
+  std::istringstream lines(scene::live_settings(sc));
+  for (std::string line; std::getline(lines, line);)
+    if (const std::size_t eq = line.find('='); eq != std::string::npos)
+      settings[line.substr(0, eq)] = line.substr(eq + 1);
+  summary["settings"] = settings;
   if (out.summary) *out.summary << json_text(summary, 2) << '\n';
   spdlog::info("done: {} steps in {:.3f} s ({:.3g} block-steps/s), max hinge error {:.3g} m", sim->steps(),
                stepping, rate, max_error);
+  if (std::abs(sim->time() - o.duration) > 1e-9 * o.duration)  // (the step nearest --duration ends the run)
+    spdlog::info("--duration {} s is not a whole number of steps of {} s: the run ended at t = {:.9g} s", o.duration,
+                 sc.dt, sim->time());
   for (const auto& [kind, n] : counts) spdlog::info("  {:>16}: {}", kind, n);
   if (sim->ladder().rescued_solves() > 0)  // docs/model.md section 3.1
     spdlog::info("solves rescued after solver.max_iterations: {}", sim->ladder().rescued_solves());

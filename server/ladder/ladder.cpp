@@ -384,6 +384,7 @@ void Ladder::book_motion(const core::Energy& e0) {
   const double lost = e0.total() + piece_work_ - world_.energy().total();
   losses_.motion += lost;
   since_flip_.motion += lost;
+  work_put_in_ += piece_work_;
   piece_work_ = 0;
 }
 
@@ -476,8 +477,11 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
       throw std::runtime_error(why + " even with 1/" + std::to_string(1 << kMaxHalvings) + " of the time step at t = " +
                                format_number(world_.time()) + " s: " +
                                too_violent(step_h_,  // (h: a piece of it, when the step was cut at an event)
-                                           "try a smaller sim.dt, or check masses, forces, grips, damping and the "
-                                           "tip duration"));
+                                           world_.options().integrator == core::Integrator::Euler
+                                               ? "sim.integrator = euler gains energy at every step: use another "
+                                                 "(midpoint, the default, keeps it), or a much smaller sim.dt"
+                                               : "try a smaller sim.dt, or check masses, forces, grips, damping and "
+                                                 "the tip duration"));
     if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, why + ": steps redone in halves");
     halving_ = true;
     step_guarded(0.5 * h, depth + 1);
@@ -962,8 +966,8 @@ void Ladder::join_hinge(int k) {
   if (gap > spec_.capture_distance)
     throw std::invalid_argument("hinge " + std::to_string(k) + ": the " +
                                 (radius > 0 ? std::string("rounded ends") : std::string("corners")) + " are " +
-                                std::to_string(gap * 1e3) + " mm apart, more than the capture distance of " +
-                                std::to_string(spec_.capture_distance * 1e3) + " mm");
+                                format_number(gap * 1e3) + " mm apart, more than the capture distance of " +
+                                format_number(spec_.capture_distance * 1e3) + " mm");
   const core::Restructure r = world_.combine(pa, pb, radius);
   h.status = HingeStatus::Hinged;
   emit(EventKind::Join, k, r.energy_removed);
@@ -974,7 +978,9 @@ double Ladder::poke(int block, const std::optional<Vec2>& point, const Vec2& imp
   // (A point off the block would turn it by the lever of a point it does not have: 1e3 rad/s from 1 N s at 5 m.)
   if (point)
     check_on_block(block, core::Rot::of(block_angle(block)).apply_inverse(*point - block_centre(block)), "the point");
-  return world_.apply_impulse(block, point ? *point : block_centre(block), impulse);
+  const double gained = world_.apply_impulse(block, point ? *point : block_centre(block), impulse);
+  work_put_in_ += gained;
+  return gained;
 }
 
 void Ladder::push(int block, const Vec2& local_point, const Vec2& force, double duration) {

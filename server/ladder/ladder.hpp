@@ -190,6 +190,9 @@ class Ladder {
   // Every loss since construction, and the part of it up to the last flip-flop with the number of flip-flops (each
   // flip-flop's event says what was lost since the one before).
   const Losses& losses() const { return losses_; }
+  // The work put into the blocks since construction [J]: the hand's drive, pushes and grips over the steps, and
+  // pokes. So energy at the start + work_put_in() - losses().total() is the energy now, to the ledger's rounding.
+  double work_put_in() const { return work_put_in_; }
   double lost_by_last_flip() const { return lost_by_last_flip_; }
   int flip_flops() const { return flip_flops_; }
   // Solves the world rescued after their iteration limit (core::StepStats::rescues), over every step taken, the
@@ -273,7 +276,7 @@ class Ladder {
   std::vector<double> flipped_at_;
   // The energy ledger (losses()): the work the accepted steps of the piece under way put in, what was lost since the
   // last flip-flop (reported with the next one), and the total at the last flip-flop.
-  double piece_work_ = 0;
+  double piece_work_ = 0, work_put_in_ = 0;
   Losses losses_, since_flip_;
   double lost_by_last_flip_ = 0;
   int flip_flops_ = 0;

@@ -107,6 +107,17 @@ TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
   EXPECT_NEAR(lost["total"].get<double>(), parts + lost["motion"].get<double>(), 1e-15);
   EXPECT_GT(s["energy_lost_per_flip_flop_J"].get<double>(), 0);
   EXPECT_LT(s["energy_lost_per_flip_flop_J"].get<double>(), lost["total"].get<double>() / 5 + 1e-15);
+  // The ledger closes: the energy at the start, plus what the hand put in, less what was lost, is the energy at the
+  // end (to rounding: the energies are sums of about 20 terms of 0.1 J). The tip puts in more than the whole rise.
+  const double put_in = s["energy_put_in_J"].get<double>();
+  EXPECT_GT(put_in, s["energy_final_J"].get<double>() - s["energy_initial_J"].get<double>());
+  EXPECT_NEAR(s["energy_initial_J"].get<double>() + put_in - lost["total"].get<double>(),
+              s["energy_final_J"].get<double>(), 1e-14);
+  // What the run was: its file, no overrides, the settings in force.
+  EXPECT_EQ(s["source"], kScenes + "classic.toml");
+  EXPECT_TRUE(s["overrides"].empty());
+  EXPECT_EQ(s["settings"]["sim.integrator"], "midpoint");
+  EXPECT_EQ(s["settings"]["damping.linear"], "0.1");
 }
 
 TEST_F(Offline, SetOverridesTheScene) {
@@ -117,6 +128,9 @@ TEST_F(Offline, SetOverridesTheScene) {
   EXPECT_EQ(s["blocks"], 3);
   EXPECT_EQ(s["integrator"], "rk4");
   EXPECT_EQ(s["steps"], 50);
+  EXPECT_EQ(s["settings"]["sim.integrator"], "rk4");
+  ASSERT_TRUE(s["overrides"].is_array());
+  EXPECT_EQ(s["overrides"].back(), "sim.integrator=rk4");
   std::istringstream traj(slurp(path("traj.csv")));
   int rows = -1;
   for (std::string line; std::getline(traj, line);) ++rows;
