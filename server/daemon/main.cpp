@@ -15,9 +15,36 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <memory>
 #include <optional>
 #include <iostream>
+#include <string>
+
+namespace {
+
+// A number, or a whole one, in words when it is not ("--duration: 'ten' is not a number"; CLI11 said "Could not
+// convert: --duration = ten"). Ranges are checked with the configuration's, which name the key.
+CLI::Validator a_number(bool whole) {
+  return CLI::Validator(
+      [whole](std::string& text) -> std::string {
+        const char* end = text.data() + text.size();
+        bool read = false;
+        if (whole) {
+          long long n = 0;
+          const auto r = std::from_chars(text.data(), end, n);
+          read = r.ec == std::errc() && r.ptr == end;
+        } else {
+          double x = 0;
+          const auto r = std::from_chars(text.data(), end, x);
+          read = r.ec != std::errc::invalid_argument && r.ptr == end;  // (out of range: the range check says so)
+        }
+        return read && !text.empty() ? "" : "'" + text + "' is not a " + (whole ? "whole number" : "number");
+      },
+      whole ? "INTEGER" : "NUMBER");
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace ladder;
@@ -40,18 +67,24 @@ int main(int argc, char** argv) {
   auto* sim_id = app.add_option("--sim-id", c.server.sim_id,
                                 "this ladder's id, to share a domain with others (refused if one there has it)");
   auto* rate =
-      app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time")->capture_default_str();
+      app.add_option("--rate", c.server.rates.physics, "physics ticks per second of wall time")
+          ->check(a_number(false))
+          ->capture_default_str();
   auto* publish = app.add_option("--publish-rate", c.server.rates.publish,
-                                 "states published per second (default 60, or the physics rate when that is lower)");
+                                 "states published per second (default 60, or the physics rate when that is lower)")
+                     ->check(a_number(false));
   auto* rtf = app.add_option("--rtf", c.server.rates.real_time_factor,
                              "real-time factor: sim seconds per wall second, 0 = as fast as possible")
+                  ->check(a_number(false))
                   ->capture_default_str();
   auto* realtime = app.add_option("--realtime-priority", c.server.realtime_priority,
                                   "run the physics thread at SCHED_FIFO priority 1-99 (needs CAP_SYS_NICE); 0 = off")
+                       ->check(a_number(true))
                        ->check(CLI::Range(0, 99));
   auto* spin = app.add_option("--spin-us", c.server.spin_us,
                               "busy-wait the last US microseconds before each tick instead of sleeping: ticks start on "
-                              "time, for that much CPU; 0 = off");
+                              "time, for that much CPU; 0 = off")
+                   ->check(a_number(true));
   auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
   auto* security = app.add_option("--security", c.security,
@@ -68,7 +101,7 @@ int main(int argc, char** argv) {
   app.add_option("--resimulate", resimulate,
                  "with --offline: re-run a session log FILE and compare every recorded state bit for bit")
       ->check(CLI::ExistingFile);
-  app.add_option("--duration", o.duration, "simulated time to run [s] (offline)");
+  app.add_option("--duration", o.duration, "simulated time to run [s] (offline)")->check(a_number(false));
   app.add_option("--events", o.events, "write events as JSON lines to FILE (offline)");
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");

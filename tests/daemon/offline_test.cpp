@@ -216,7 +216,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
   const std::string scene = " --scene " + kScenes + "classic.toml";
   struct Case { std::string args, words; };
   for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "--scene /no/such.toml: no such file\n"},
-                        Case{"--offline" + scene + " --duration ten", "--duration"},
+                        Case{"--offline" + scene + " --duration ten", "--duration: 'ten' is not a number"},
+                        Case{scene + " --spin-us 1.5", "--spin-us: '1.5' is not a whole number"},
                         Case{"--offline" + scene, "--duration"},
                         Case{"--offline" + scene + " --duration 1e-10",
                              "--duration 1e-10 s is shorter than half a step (sim.dt = 0.001 s): no step would run"},
