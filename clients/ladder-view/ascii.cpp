@@ -110,11 +110,19 @@ std::string render_ascii(const Camera& cam, const client::SceneInfo& info, const
 
 namespace {
 
-// The terminal while the view runs: keys one at a time without echo (when standard input is a terminal), the cursor
-// hidden; both restored when the view ends, however it ends (q, a signal, no server, an exception).
+// The terminal while the view runs: keys one at a time without echo (when standard input is a terminal and the view
+// runs in its foreground), the cursor hidden; both restored when the view ends, however it ends (q, a signal, no
+// server, an exception). In the background (`timeout`, which runs a program in a process group of its own, or `&`)
+// there are no keys: changing the terminal's modes from there stopped the view with SIGTTOU at once, for good.
+bool in_foreground() {
+  const pid_t group = tcgetpgrp(STDIN_FILENO);
+  return group != -1 && group == getpgrp();
+}
+
 class Terminal {
  public:
-  explicit Terminal(bool tty) : tty_(tty), keys_(isatty(STDIN_FILENO) && tcgetattr(STDIN_FILENO, &saved_) == 0) {
+  explicit Terminal(bool tty)
+      : tty_(tty), keys_(isatty(STDIN_FILENO) && in_foreground() && tcgetattr(STDIN_FILENO, &saved_) == 0) {
     if (keys_) {
       termios raw = saved_;
       raw.c_lflag &= ~static_cast<tcflag_t>(ICANON | ECHO);

@@ -512,8 +512,8 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
     });
   }
 
-  auto* step = app.add_subcommand("step", "advance N steps (while paused)");
-  step->add_option("N", v.count, "number of steps")->required()->check(ladder::client::count(UINT32_MAX));
+  auto* step = app.add_subcommand("step", "advance N steps (while paused; default 1, as the viewer's s key)");
+  step->add_option("N", v.count, "number of steps (default 1)")->check(ladder::client::count(UINT32_MAX));
   step->callback([&] {
     const ladder_msg_Command c = cmd::step(v.count);
     action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };

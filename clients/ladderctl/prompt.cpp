@@ -40,7 +40,7 @@ const char* kHelp =
     "  push BLOCK --force X,Y --for S [--at X,Y]\n"
     "  grab BLOCK [--to X,Y] [--stiffness K]   drag BLOCK X,Y[,THETA]   release BLOCK\n"
     "  break HINGE                  join HINGE\n"
-    "  pause   resume   step N   reset\n"
+    "  pause   resume   step [N]   reset\n"
     "  set KEY VALUE                e.g. set damping.linear 0.5, set server.real_time_factor 0.25\n"
     "  load SCENE                   e.g. load double-ripple\n"
     "  status                       watch events|stats|state [--json]   (Ctrl-C ends a watch)\n"

@@ -299,7 +299,10 @@ void Physics::publish_stats(Clock::time_point now) {
   s.late_p50_us = late.p50;
   s.late_p99_us = late.p99;
   s.late_max_us = late.max;
-  s.real_time_factor = s.window > 0 ? std::max(0.0, sim.time() - sim_at_last_stats_) / s.window : 0;
+  // The sim time run over the window: a reset or a load since the last Stats began the scene again at t = 0 (the
+  // factor read 0 for the second after each).
+  const double from = session_.generation() == stats_generation_ ? sim_at_last_stats_ : 0.0;
+  s.real_time_factor = s.window > 0 ? std::max(0.0, sim.time() - from) / s.window : 0;
   s.missed_deadlines = missed_;
   s.solver_iterations = static_cast<std::uint32_t>(sim.ladder().world().last_step().iterations);
   s.solver_residual = sim.ladder().world().last_step().residual;
@@ -330,12 +333,15 @@ void Physics::publish_stats(Clock::time_point now) {
   with_outbox([&](Outbox& o) { o.stats.push_back(s); });
   last_stats_ = now;
   sim_at_last_stats_ = sim.time();
+  stats_generation_ = session_.generation();
 }
 
 void Physics::run(const std::atomic<bool>& stop, bool realtime) {
   realtime_ = realtime;
   wake_on_time();
   last_stats_ = last_publish_ = Clock::now();
+  sim_at_last_stats_ = session_.sim().time();  // (a resumed session starts where its log ended)
+  stats_generation_ = session_.generation();
   tick_.tick = 1;
   ticks_.reserve(250);
   push_scene();

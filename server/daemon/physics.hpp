@@ -65,6 +65,7 @@ class Physics {
   std::size_t taken_ = 0;  // commands taken since the last tick's step (at most commands.per_tick)
   const char* taking_ = "";  // where take_commands() is called from, for the debug log
   double sim_at_last_stats_ = 0;
+  std::uint32_t stats_generation_ = 0;  // the scene's generation at the last Stats
   Clock::time_point last_stats_{}, last_publish_{};
   std::uint32_t scene_generation_ = 0;
   Rates scene_rates_{};

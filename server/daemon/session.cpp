@@ -286,6 +286,13 @@ Outcome Session::set_param(const std::string& full) {
     }
     return {};
   }
+  // A server key without its table, or as ladderd's option says it (`set rtf 0.25`): named, where the scene's keys
+  // would offer the nearest of theirs ('sim.dt').
+  for (const auto& [alias, server_key] : {std::pair{"rtf", "server.real_time_factor"},
+                                          {"real_time_factor", "server.real_time_factor"},
+                                          {"publish_rate", "server.publish_rate"},
+                                          {"physics_rate", "server.physics_rate"}})
+    if (key == alias) return {false, setting + ": unknown key '" + key + "' (did you mean '" + server_key + "'?)"};
   try {
     sim_->set(full, kServerLiveKeys);
   } catch (const scene::SceneError& e) {

@@ -829,6 +829,19 @@ TEST_F(View, TerminalRestoresTheCursorOnEverySignal) {
   }
 }
 
+// Under `timeout` (which runs the view in a process group of its own, in the terminal's background) the view draws
+// without keys, saying how to tip from elsewhere, and ends on timeout's signal: changing the terminal's modes from
+// the background had stopped it with SIGTTOU at once, for good, and `timeout` then waited for ever.
+TEST_F(View, TerminalUnderTimeoutDrawsWithoutKeysAndEnds) {
+  // (Through a shell, the terminal's session leader, as from a prompt: `timeout` then makes its own group.)
+  const std::string view = kViewer + " --ascii --domain " + std::to_string(domain_) + " --sim-id " + sim_id_;
+  Pty term({"/bin/sh", "-c", "timeout -k 3 60 " + view + " --timeout 30"}, 80, 24);
+  ASSERT_TRUE(term.read_until("from another terminal: ladderctl --sim-id ", 30)) << term.screen();
+  EXPECT_EQ(term.screen().find("keys: t tip"), std::string::npos);
+  kill(term.pid(), SIGTERM);
+  EXPECT_TRUE(term.wait_exit(20).has_value()) << "the view under timeout did not end";
+}
+
 // --at a time the server has already passed: the snapshot is of the state it has, and the viewer says so.
 TEST_F(View, PngAtATimeAlreadyPastSaysSo) {
   ASSERT_TRUE(client_->wait_state([](const client::State& st) { return st.sim_time > 0.2; }, Millis(30000)));

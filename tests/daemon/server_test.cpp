@@ -306,6 +306,19 @@ TEST_F(Server, SuspendedWatchersDoNotHoldTheServerAtItsStop) {
   stats->signal(SIGCONT);
 }
 
+// The real-time factor of the first Stats after a reset counts the new scene's time from its start, t = 0: it was
+// the time run since the last Stats, negative across the reset, so it read exactly 0 for a second after every reset
+// or load (in the window, the terminal, `ladderctl list`). Asserted only above 0: the machine may be slow.
+TEST_F(Server, TheRealTimeFactorAfterAResetCountsTheNewScenesTime) {
+  start();
+  ASSERT_TRUE(c().wait_state([](const client::State& st) { return st.sim_time > 1.5; }, kStart));
+  const client::Ack reset = c().call(cmd::reset(), kAnswer);
+  ASSERT_TRUE(reset.accepted) << reset.reason;
+  const auto after = c().wait_stats([](const ladder_msg_Stats& st) { return st.sim_time < 1.0; }, kStart);
+  ASSERT_TRUE(after.has_value());
+  EXPECT_GT(after->real_time_factor, 0) << "sim time " << after->sim_time << ", window " << after->window;
+}
+
 // A second ladderd started with the sim id a running one serves on the same domain (`scripts/run` run again in another
 // terminal) refuses to start, naming the other, and publishes nothing: the two had served side by side, and every
 // client saw their states mixed (sim time 41 s, then 12 s) and both took its commands. The first one serves on.

@@ -159,6 +159,18 @@ TEST(SessionRanges, ALongSettingIsNamedByItsStartAndTheReasonFits) {
       << key.reason;
 }
 
+// A server key given without its table, or as ladderd's option names it, is named (the scene's keys offered 'sim.dt'
+// for `set rtf 0.25`, and nothing for `set real_time_factor 0.25`).
+TEST(SessionRanges, AServerKeyWithoutItsTableIsNamed) {
+  auto s = classic();
+  expect_refused(*s, set("rtf=0.25"), "rtf=0.25: unknown key 'rtf' (did you mean 'server.real_time_factor'?)");
+  expect_refused(*s, set("real_time_factor=0.25"),
+                 "real_time_factor=0.25: unknown key 'real_time_factor' (did you mean 'server.real_time_factor'?)");
+  expect_refused(*s, set("publish_rate=30"), "publish_rate=30: unknown key 'publish_rate' (did you mean "
+                                             "'server.publish_rate'?)");
+  EXPECT_TRUE(s->apply(fields_of(set("server.real_time_factor=0.25"))).accepted);
+}
+
 TEST(SessionRanges, PublishRateIsAtLeastOneHertz) {
   auto s = classic();
   const std::string range = ": server.publish_rate must be a number from 1 Hz to the physics rate (1000 Hz)";
