@@ -529,7 +529,9 @@ void declare(CLI::App& app, Values& v, Action& action, Standalone& standalone) {
   });
 
   auto* load = app.add_subcommand("load", "start another scene from the server's scene directory");
-  load->add_option("SCENE", v.scene, "a scene name or file name, e.g. double-ripple")->required();
+  load->add_option("SCENE", v.scene,
+                   "the name of a scene in the server's scene directory, e.g. double-ripple (or double-ripple.toml)")
+      ->required();
   load->callback([&] {
     const ladder_msg_Command c = cmd::load(v.scene);
     action = [c](Client& cl, const Connection& k) { return send(cl, k, c); };
