@@ -838,7 +838,12 @@ TEST_F(View, TerminalUnderTimeoutDrawsWithoutKeysAndEnds) {
   Pty term({"/bin/sh", "-c", "timeout -k 3 60 " + view + " --timeout 30"}, 80, 24);
   ASSERT_TRUE(term.read_until("from another terminal: ladderctl --sim-id ", 30)) << term.screen();
   EXPECT_EQ(term.screen().find("keys: t tip"), std::string::npos);
-  kill(term.pid(), SIGTERM);
+  // SIGTERM to `timeout` (the shell's child), which passes it on: the view ends, then `timeout`, then the shell.
+  const std::string shell = std::to_string(term.pid());
+  std::ifstream children("/proc/" + shell + "/task/" + shell + "/children");
+  pid_t timeout_pid = 0;
+  ASSERT_TRUE(children >> timeout_pid) << "the shell has no child";
+  kill(timeout_pid, SIGTERM);
   EXPECT_TRUE(term.wait_exit(20).has_value()) << "the view under timeout did not end";
 }
 
