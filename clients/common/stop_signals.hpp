@@ -1,7 +1,8 @@
 // SIGINT, SIGTERM and SIGHUP turned into a flag for as long as the object lives, for the clients' long loops
-// (ladderctl watch and replay): they end their loop and delete their DDS participant. Ended by a signal's default
-// action instead (`timeout`, `kill`, a closed terminal), a client left its readers behind, and the server's reliable
-// writers that still had samples for them waited on them when the server stopped (docs/network.md).
+// (ladderctl watch and replay, ladder-view --ascii): they end their loop and delete their DDS participant. Ended by
+// a signal's default action instead (`timeout`, `kill`, a closed terminal), a client left its readers behind, and
+// the server's reliable writers that still had samples for them waited on them when the server stopped
+// (docs/network.md).
 #pragma once
 
 #include <csignal>

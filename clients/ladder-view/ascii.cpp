@@ -1,6 +1,7 @@
 #include "ascii.hpp"
 
 #include "app.hpp"
+#include "stop_signals.hpp"
 
 #include <sys/ioctl.h>
 #include <termios.h>
@@ -9,7 +10,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <string_view>
@@ -246,7 +246,7 @@ int run_ascii(const Options& o) {
   client::Client c(o.domain, o.sim_id);
   if (!found_server(o, c)) return kNoServer;
   g_stop = false;
-  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, on_stop);
+  const client::StopSignals stop(on_stop);
   const bool tty = isatty(STDOUT_FILENO);
   const Terminal term(tty);
   Feed feed(c);
