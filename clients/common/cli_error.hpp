@@ -35,7 +35,7 @@ inline int report_parse_error(const CLI::App& app, const CLI::ParseError& e, con
   if (e.get_exit_code() == 0) return app.exit(e);
   const std::string prefix = program.empty() ? "" : program + ": ";
   if (dynamic_cast<const CLI::ExtrasError*>(&e) == nullptr) {
-    std::cerr << prefix << e.what() << "\nRun with --help for the options.\n";
+    std::cerr << prefix << repeated_option(e.what()) << "\nRun with --help for the options.\n";
     return 2;
   }
   std::vector<std::string> options;

@@ -67,7 +67,10 @@ std::vector<std::string> Outbox::take() {
     ready_.push_back(it->what + ": " + (a ? (a->accepted ? std::string(buf) : "refused: " + a->reason) : "no answer"));
     it = pending_.erase(it);
   }
-  if (!ready_.empty()) last_ = ready_.back();
+  if (!ready_.empty()) {
+    last_ = ready_.back();
+    last_at_ = std::chrono::steady_clock::now();
+  }
   return std::exchange(ready_, {});
 }
 
@@ -91,6 +94,16 @@ std::string camera_text(const Camera& c) {
   std::snprintf(buf, sizeof buf, "view centre %.9g,%.9g m, %.9g px/m, yaw %.9g deg, pitch %.9g deg", c.cx, c.cy,
                 c.scale, c.yaw * 180 / M_PI, c.pitch * 180 / M_PI);
   return buf;
+}
+
+std::string scene_label(const std::string& name, std::size_t max_chars) {
+  std::size_t end = name.size(), chars = 0;
+  for (std::size_t i = 0; i < name.size() && end == name.size(); ++i)
+    if ((static_cast<unsigned char>(name[i]) & 0xC0) != 0x80 && chars++ == max_chars) end = i;  // a character begins
+  std::string out(1, '\'');
+  out.append(name, 0, end);
+  out.append(end < name.size() ? "...'" : "'");
+  return out;
 }
 
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats) {

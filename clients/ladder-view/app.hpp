@@ -74,9 +74,13 @@ class Outbox {
   // Sends `c` now; `what` names it in the answer ("tip", "poke block 3"). With no server: an answer at once.
   void send(const ladder_msg_Command& c, const std::string& what);
   // The answers that came (or timed out) since the last call, e.g. "tip: accepted at t = 1.234 s"; the latest also
-  // stays in last().
+  // stays in last(), and in recent() for kRecent after it came.
   std::vector<std::string> take();
   const std::string& last() const { return last_; }
+  // The latest answer while it is news: a picture that shows it for ever showed "tip: accepted" after a `load` from
+  // elsewhere, a reset or a server restart, as if it were the news of the ladder on screen.
+  static constexpr std::chrono::seconds kRecent{10};
+  std::string recent() const { return std::chrono::steady_clock::now() - last_at_ < kRecent ? last_ : std::string(); }
 
  private:
   struct Pending {
@@ -88,6 +92,7 @@ class Outbox {
   std::vector<Pending> pending_;
   std::vector<std::string> ready_;
   std::string last_;
+  std::chrono::steady_clock::time_point last_at_{};
 };
 
 int run_png(const Options& o);
@@ -103,6 +108,9 @@ Camera camera_for(const Options& o, const client::SceneInfo& info, const client:
 // "view centre X,Y m, S px/m, yaw A deg, pitch B deg": how --png and the window report their camera (--view
 // takes the same numbers).
 std::string camera_text(const Camera& c);
+// The scene's name as the headings show it: quoted, and past `max_chars` characters cut with "..." (a name may be
+// 1024 bytes long).
+std::string scene_label(const std::string& name, std::size_t max_chars = 40);
 // The HUD's overlay lines from the latest Stats and SceneInfo.
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats);
 

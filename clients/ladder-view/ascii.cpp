@@ -159,12 +159,12 @@ class Terminal {
 // to tip the ladder from elsewhere.
 std::vector<std::string> heading(const Options& o, const Feed& feed, const client::State& s, bool keys,
                                  const std::string& answer) {
-  char line[256];
+  char line[512];
   const std::string rtf = feed.stats() ? client::fixed(feed.stats()->real_time_factor, 2) : "-";
   // What changes first, the sim id last: a narrow terminal cuts the end.
-  std::snprintf(line, sizeof line, "t = %s s%s  real-time x%s  %u blocks  sim id '%s'",
-                client::fixed(s.sim_time, 3).c_str(), s.paused ? "  PAUSED" : "", rtf.c_str(), feed.info()->blocks,
-                o.sim_id.c_str());
+  std::snprintf(line, sizeof line, "t = %s s%s  real-time x%s  %s, %u blocks  sim id '%s'",
+                client::fixed(s.sim_time, 3).c_str(), s.paused ? "  PAUSED" : "", rtf.c_str(),
+                scene_label(feed.info()->scene_name).c_str(), feed.info()->blocks, o.sim_id.c_str());
   const char* quiet = feed.info()->replay ? "  (the replay has sent nothing for a while: ended or stopped?)"
                                           : "  (waiting for ladderd: no news for a while)";
   std::vector<std::string> out{std::string(line) + (feed.quiet() > 3 ? quiet : "")};
@@ -200,6 +200,14 @@ std::vector<std::string> hinge_panel(const client::State& s, int rows) {
   return out;
 }
 
+// The first `cols` characters of `text` (UTF-8).
+std::string first_columns(const std::string& text, int cols) {
+  int chars = 0;
+  for (std::size_t i = 0; i < text.size(); ++i)
+    if ((static_cast<unsigned char>(text[i]) & 0xC0) != 0x80 && chars++ == cols) return text.substr(0, i);
+  return text;
+}
+
 constexpr int kPanel = 22;  // [characters] the hinge panel's width, when the terminal is wide enough
 
 // What a key does: q quits; t, space, s and r send a command.
@@ -226,8 +234,9 @@ std::string frame_text(const Options& o, const Feed& feed, const client::State& 
   const std::string art = render_ascii(cam, *feed.info(), s, picture, rows);
   const std::vector<std::string> side = panel ? hinge_panel(s, rows) : std::vector<std::string>{};
   std::string frame = tty ? "\x1b[H" : "";
-  // On a terminal a line longer than it is wide would wrap and push the picture down: cut there.
-  for (const std::string& h : head) frame += tty ? h.substr(0, static_cast<std::size_t>(cols)) + "\x1b[K\n" : h + "\n";
+  // On a terminal a line longer than it is wide would wrap and push the picture down: cut there, at a whole
+  // character (one column each: the scene's name may be any printable text).
+  for (const std::string& h : head) frame += tty ? first_columns(h, cols) + "\x1b[K\n" : h + "\n";
   std::size_t at = 0;
   for (int r = 0; r < rows; ++r) {
     const std::size_t nl = art.find('\n', at);
@@ -256,12 +265,17 @@ int run_ascii(const Options& o) {
   auto last_frame = std::chrono::steady_clock::now() - period;
   int frames = 0;
   bool fresh = true;
+  std::string answer;  // the answer on the heading: it goes after Outbox::kRecent
   while (!g_stop && (o.frames == 0 || frames < o.frames)) {
     fresh = feed.update(tick) || fresh;
     const client::State* s = feed.state();
     for (const char k : term.typed())
       if (!on_key(k, out, s)) g_stop = true;
-    if (!out.take().empty()) fresh = true;  // the answer goes on the heading
+    out.take();
+    if (out.recent() != answer) {  // an answer came (it goes on the heading), or went
+      answer = out.recent();
+      fresh = true;
+    }
     if (!s && feed.undrawable() > o.timeout) {
       std::cerr << "ladder-view: nothing to draw from ladderd '" << o.sim_id << "' in " << o.timeout
                 << " s: " << feed.why_undrawable() << "\n";
@@ -271,7 +285,7 @@ int run_ascii(const Options& o) {
     if (!s || (!fresh && !waiting) || std::chrono::steady_clock::now() - last_frame < period) continue;
     int cols = o.width, rows = o.height;
     if (tty) terminal_size(cols, rows);
-    std::fputs(frame_text(o, feed, *s, term.keys(), out.last(), cols, rows, tty).c_str(), stdout);
+    std::fputs(frame_text(o, feed, *s, term.keys(), answer, cols, rows, tty).c_str(), stdout);
     std::fflush(stdout);
     last_frame = std::chrono::steady_clock::now();
     fresh = false;

@@ -389,8 +389,23 @@ void draw_grips(cairo_t* cr, const View& v, const client::State& s) {
   }
 }
 
-void draw_text_box(cairo_t* cr, double x, double y, double size, const std::vector<std::string>& lines) {
+// `text` without an incomplete UTF-8 sequence at its end. Every text the picture shows is valid UTF-8 (the client
+// makes what comes from DDS printable) until snprintf cuts a line to its buffer, maybe inside a character: cairo
+// then put the context in an error state and drew nothing more of the frame.
+std::string whole_characters(std::string text) {
+  std::size_t start = text.size();  // where the last character begins
+  for (int back = 0; back < 4 && start > 0; ++back)
+    if ((static_cast<unsigned char>(text[--start]) & 0xC0) != 0x80) break;
+  if (start == text.size()) return text;
+  const unsigned char lead = static_cast<unsigned char>(text[start]);
+  const std::size_t need = lead < 0x80 ? 1 : lead >= 0xF0 ? 4 : lead >= 0xE0 ? 3 : lead >= 0xC0 ? 2 : 1;
+  if (text.size() - start < need) text.resize(start);
+  return text;
+}
+
+void draw_text_box(cairo_t* cr, double x, double y, double size, std::vector<std::string> lines) {
   if (lines.empty()) return;
+  for (std::string& l : lines) l = whole_characters(std::move(l));
   cairo_select_font_face(cr, "DejaVu Sans Mono", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
   cairo_set_font_size(cr, size);
   double w = 0;
@@ -454,7 +469,7 @@ void draw_scale_bar(cairo_t* cr, const Camera& cam) {
 void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::State* s) {
   if (hud.show) {
     std::vector<std::string> top;
-    char buf[160];
+    char buf[320];
     if (s) {
       const std::string rtf = hud.real_time_factor >= 0 ? client::fixed(hud.real_time_factor, 2) : "-";
       std::snprintf(buf, sizeof buf, "%s  t = %s s  real-time x%s%s", hud.title.c_str(),
@@ -468,16 +483,20 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
     if (hud.stats) draw_text_box(cr, 10, 40, 12, hud.lines);
   }
   if (hud.scale_bar) draw_scale_bar(cr, cam);
-  if (!hud.banner.empty()) {
-    cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_BOLD);
-    cairo_set_font_size(cr, 20);
-    cairo_text_extents_t e;
-    cairo_text_extents(cr, hud.banner.c_str(), &e);
-    draw_text_box(cr, 0.5 * (cam.width - e.x_advance), 0.5 * cam.height - 10, 20, {hud.banner});
-  }
+  draw_banner(cr, cam, hud.banner);
 }
 
 }  // namespace
+
+void draw_banner(cairo_t* cr, const Camera& cam, const std::string& text) {
+  if (text.empty()) return;
+  const std::string whole = whole_characters(text);
+  cairo_select_font_face(cr, "DejaVu Sans Mono", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, 20);
+  cairo_text_extents_t e;
+  cairo_text_extents(cr, whole.c_str(), &e);
+  draw_text_box(cr, 0.5 * (cam.width - e.x_advance), 0.5 * cam.height - 10, 20, {whole});
+}
 
 Vec3 Camera::to_view(Vec3 w) const { return Rotation(yaw, pitch).apply({w.x - cx, w.y - cy, w.z}); }
 

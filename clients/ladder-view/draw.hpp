@@ -181,6 +181,8 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
 std::string write_png(cairo_surface_t* surface, const std::string& path);
 // Background and HUD only (no state yet).
 void draw_empty(cairo_t* cr, const Camera& camera, const Hud& hud);
+// A big message centred in the picture (Hud::banner; the window draws it itself, last, over the plots).
+void draw_banner(cairo_t* cr, const Camera& camera, const std::string& text);
 
 // The hand that holds a held top block: fingers pinching block 0 at its centre from the front, the forearm toward
 // the viewer (the axis about which the wrist turns the block when the ladder is tipped). The fingers' centre in

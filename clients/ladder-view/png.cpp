@@ -74,7 +74,7 @@ int run_png(const Options& o) {
 
   const Camera cam = camera_for(o, info, state, o.width, o.height);
   Hud hud;
-  hud.title = info.replay ? o.sim_id + " (REPLAY)" : o.sim_id;
+  hud.title = (info.replay ? o.sim_id + " (REPLAY)" : o.sim_id) + "  " + scene_label(info.scene_name);
   if (feed.stats()) hud.real_time_factor = feed.stats()->real_time_factor;
   hud.numbers = o.numbers;
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, o.width, o.height);

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <iostream>
 #include <memory>
+#include <utility>
 
 namespace ladder::view {
 
@@ -26,8 +27,9 @@ constexpr double kPokeImpulse = 0.005;  // [N s] ladderctl's default poke
 constexpr double kDragSlop = 4;         // [px] a press that moves farther is a drag, not a click
 constexpr auto kDragPeriod = std::chrono::milliseconds(30);  // drag commands at most ~33 a second
 
-// The overlay's keys, in short lines: the overlay stands down the left side of the picture.
+// The overlay's legend and keys, in short lines: the overlay stands down the left side of the picture.
 const std::vector<std::string> kHelp = {
+    "red hinge: a pair locked straight", "grey x: a broken hinge",  "green ring: a hand's target",
     "click a block: poke it",      "drag a block: grab and move it", "drag elsewhere, middle drag: pan",
     "right drag: orbit  wheel: zoom", "t tip  space pause/resume",    "s step (S: 100)  r reset",
     "f follow the ripple  0 fit",  "v side view / 3-D  n numbers",   "p plots  Tab next ladder",
@@ -141,6 +143,7 @@ class Viewer {
       fitted_ = true;
       scene_blocks_ = info.blocks;
       scene_name_ = info.scene_name;
+      screen_.title("ladder-view: " + sim_id_ + "  " + scene_label(info.scene_name));
       std::printf("ladder-view: showing '%s' (%u blocks) in a %dx%d window; %s\n", info.scene_name.c_str(),
                   info.blocks, camera_.width, camera_.height, camera_text(camera_).c_str());
       std::fflush(stdout);
@@ -221,6 +224,7 @@ class Viewer {
     const auto t0 = Clock::now();
     Hud hud;
     hud.title = link_->feed.replay() ? sim_id_ + " (REPLAY)" : sim_id_;
+    if (const client::SceneInfo* info = link_->feed.info()) hud.title += "  " + scene_label(info->scene_name);
     hud.stats = true;
     hud.numbers = numbers_;
     if (link_->feed.stats()) hud.real_time_factor = link_->feed.stats()->real_time_factor;
@@ -245,11 +249,15 @@ class Viewer {
                     follow_ ? ", following the ripple" : "");
       hud.lines.emplace_back(buf);
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      if (!link_->outbox.last().empty()) hud.lines.push_back(link_->outbox.last());
+      if (const std::string a = link_->outbox.recent(); !a.empty()) hud.lines.push_back(a);
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
-      hud.lines.push_back(link_->outbox.last().empty() ? "o: stats and keys" : link_->outbox.last());
+      // The last answer while it is news, and the hint always.
+      if (const std::string a = link_->outbox.recent(); !a.empty()) hud.lines.push_back(a);
+      hud.lines.emplace_back("o: stats, keys and colours");
     }
+    // The banner goes over everything, the plots too: drawn last.
+    const std::string banner = std::exchange(hud.banner, {});
     if (s)
       drawn_ = draw(screen_.cairo(), camera_, *link_->feed.info(), *s, hud);
     else
@@ -258,6 +266,7 @@ class Viewer {
     if (plots_)
       draw_plots(screen_.cairo(), history_, 0.64 * screen_.width(), 0.45 * screen_.height(),
                  0.35 * screen_.width(), 0.5 * screen_.height());
+    draw_banner(screen_.cairo(), camera_, banner);
     screen_.present();
     draw_ms_ = 1e3 * seconds(Clock::now() - t0);
     drawn_at_ = Clock::now();

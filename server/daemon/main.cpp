@@ -5,6 +5,7 @@
 #include "daemon/offline.hpp"
 #include "daemon/server.hpp"
 #include "daemon/startup.hpp"
+#include "ladder/spelling.hpp"
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
 #include "transport/domain_option.hpp"
@@ -110,7 +111,9 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("ladderd ") + kVersion);
   // CLI11's own words, with what it quotes of the command line made printable (a path holding an escape sequence).
   app.failure_message([](const CLI::App* a, const CLI::Error& e) {
-    return printable_lines(CLI::FailureMessage::simple(a, e));
+    const std::string once = repeated_option(e.what());
+    return printable_lines(once == e.what() ? CLI::FailureMessage::simple(a, e)
+                                            : once + "\nRun with --help for more information.\n");
   });
   try {
     app.parse(argc, argv);

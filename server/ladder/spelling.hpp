@@ -1,9 +1,11 @@
-// How near a word is to a name, for the "did you mean" of the scene parser's and the programs' errors. Header only,
-// like limits.hpp: the clients include it without linking the model.
+// How near a word is to a name, for the "did you mean" of the scene parser's and the programs' errors, and CLI11's
+// words for an option given twice put in a user's. Header only, like limits.hpp: the clients include it without
+// linking the model.
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
+#include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -34,6 +36,19 @@ inline std::size_t edit_distance(std::string_view a, std::string_view b) {
 inline std::size_t edit_distance_below(std::string_view a, std::string_view b, std::size_t limit) {
   const std::size_t gap = a.size() > b.size() ? a.size() - b.size() : b.size() - a.size();
   return gap >= limit ? gap : edit_distance(a, b);
+}
+
+// CLI11's message for an option given more often than it is taken, "--domain: At Most 1 required but received 2",
+// as "--domain is given 2 times; give it once". Any other message comes back as it is.
+inline std::string repeated_option(std::string_view message) {
+  constexpr std::string_view kWords = ": At Most 1 required but received ";
+  const std::size_t at = message.find(kWords);
+  if (at == std::string_view::npos) return std::string(message);
+  const std::string_view name = message.substr(0, at), count = message.substr(at + kWords.size());
+  if (name.empty() || name.find(' ') != std::string_view::npos || count.empty() ||
+      count.find_first_not_of("0123456789") != std::string_view::npos)
+    return std::string(message);
+  return std::string(name) + " is given " + std::string(count) + " times; give it once";
 }
 
 }  // namespace ladder

@@ -434,6 +434,8 @@ TEST_F(Ladderctl, BadInputIsRefusedBeforeAnythingIsSent) {
         Case{"grab 3 --stiffness -5", "--stiffness: must be a number of 0 or more, not -5"},
         Case{"grab 3 --stiffness nan", "--stiffness: 'nan' is not a number of 0 or more"},
         Case{"--domain text status", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+        // (ctl() adds the test's --domain and --sim-id; CLI11 said "--sim-id: At Most 1 required but received 2")
+        Case{"status --sim-id other", "ladderctl: --sim-id is given 2 times; give it once\n"},
         // A mistyped option before the command, with its value: the option is named ("unknown command '201'" was).
         Case{"--domian 201 tip", "ladderctl: unknown option '--domian' (did you mean '--domain'?)"},
         Case{"replay --speed 1e-15 " + dir + "-cut.lcmlog", "must be 0 (as fast as possible) or at least 1e-6"},

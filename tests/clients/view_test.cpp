@@ -2,6 +2,7 @@
 // PNG snapshots checked pixel by pixel against the state, the terminal rendering, the window under Xvfb with a
 // synthetic click (xdotool) that the server must accept, and a viewer in another network namespace.
 #include "naming.hpp"
+#include "app.hpp"
 #include "ascii.hpp"
 #include "client.hpp"
 #include "draw.hpp"
@@ -630,6 +631,46 @@ TEST(Draw, NumbersBeyondADoublesSpanAndFarGripsStayDrawable) {
   EXPECT_FALSE(view::clip_to_image(c, 6, n, m));
 }
 
+// A heading or overlay line that snprintf cut inside a character (a scene named in a script other than Latin): cairo
+// put the context in an error state at that line and drew nothing more of the frame, the scale bar after it among
+// what was lost. The line is now drawn without the broken character, and the frame goes on.
+TEST(Draw, ALineCutInsideACharacterDoesNotStopTheFrame) {
+  const client::SceneInfo info = classic_info(6);
+  const client::State s = zigzag(6);
+  Camera cam = view::fit(info, s, 400, 300);
+  view::Hud hud;
+  hud.stats = true;
+  hud.title = "ladder  'Лестница Иакова'";
+  const std::string cut = std::string("Лестница").substr(0, 7);  // 3 whole letters and half of the 4th
+  hud.lines = {cut, "after it"};
+  hud.banner = cut;
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, 400, 300);
+  cairo_t* cr = cairo_create(surface);
+  view::draw(cr, cam, info, s, hud);
+  EXPECT_EQ(cairo_status(cr), CAIRO_STATUS_SUCCESS) << cairo_status_to_string(cairo_status(cr));
+  cairo_surface_flush(surface);
+  // The scale bar, drawn after the overlay: its left tick, 2 px wide at x = 16, from y = height - 23 to height - 18.
+  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
+  const int stride = cairo_image_surface_get_stride(surface) / 4;
+  const std::uint32_t tick = px[(300 - 20) * stride + 16];
+  const Rgb got{int((tick >> 16) & 0xff), int((tick >> 8) & 0xff), int(tick & 0xff)};
+  EXPECT_LT(distance(got, view::kText), 40) << got.r << "," << got.g << "," << got.b;
+  cairo_destroy(cr);
+  cairo_surface_destroy(surface);
+}
+
+// The headings name the scene, cut with "..." past 40 characters (not bytes: never inside a character).
+TEST(Draw, SceneLabelIsQuotedAndCutAtWholeCharacters) {
+  EXPECT_EQ(view::scene_label("classic (at rest)"), "'classic (at rest)'");
+  EXPECT_EQ(view::scene_label(std::string(40, 'a')), "'" + std::string(40, 'a') + "'");
+  EXPECT_EQ(view::scene_label(std::string(41, 'a')), "'" + std::string(40, 'a') + "...'");
+  std::string cyrillic;  // 50 letters of 2 bytes each
+  for (int i = 0; i < 50; ++i) cyrillic += "Ж";
+  EXPECT_EQ(view::scene_label(cyrillic), "'" + cyrillic.substr(0, 80) + "...'");
+  EXPECT_EQ(view::scene_label(cyrillic, 3), "'ЖЖЖ...'");
+  EXPECT_EQ(view::scene_label(""), "''");
+}
+
 TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
   view::History h;
   h.add(1, 0.0, -1.0, {0, 0, 0});
@@ -757,7 +798,9 @@ TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
   // The heading: what is shown, then (no terminal to type in) how to tip it from elsewhere.
   const std::size_t picture = r.output.find("tip\n");
   ASSERT_NE(picture, std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("  6 blocks  sim id '" + sim_id_ + "'\n"), std::string::npos) << r.output;
+  const std::string scene = client_->scene_info()->scene_name;
+  ASSERT_FALSE(scene.empty());
+  EXPECT_NE(r.output.find("  '" + scene + "', 6 blocks  sim id '" + sim_id_ + "'\n"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("from another terminal: ladderctl --sim-id " + sim_id_ + " --domain " +
                           std::to_string(domain_) + " tip\n"),
             std::string::npos)
@@ -803,6 +846,10 @@ TEST_F(View, TerminalAt80x24NamesTheKeysTipsPausesAndQuits) {
   EXPECT_TRUE(term.read_until("pause: accepted at t = ", 20, before_pause)) << term.screen();
   EXPECT_TRUE(term.read_until("PAUSED", 10, before_pause)) << term.screen();
   EXPECT_TRUE(client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer).has_value());
+  // The answer is news for 10 s, then the heading says again how to tip from elsewhere (paused, no state comes to
+  // redraw the frame: the answer's going does).
+  const std::size_t answered = term.screen().size();
+  EXPECT_TRUE(term.read_until("from another terminal: ladderctl --sim-id ", 30, answered)) << term.screen();
 
   term.type("q");
   const auto status = term.wait_exit(20);
@@ -939,6 +986,8 @@ TEST_F(View, BadOptionsAreRefusedWithTheirReason) {
                         Case{" --png ''", "argument 2 is empty (after '--png')"},
                         Case{png + " --security /etc/passwd", "/etc/passwd: a file, not an identity folder"},
                         Case{png + " --domain text", "--domain: 'text' is not a DDS domain id (0 to 231)"},
+                        // (CLI11: "--domain: At Most 1 required but received 2")
+                        Case{png + " --domain 3 --domain=4", "ladder-view: --domain is given 2 times; give it once\n"},
                         // A sim id no server can have (a heading that was not UTF-8 stopped the window's picture).
                         Case{png + " --sim-id 'a b'", "--sim-id: may hold only letters, digits, '-', '_' and '.'"},
                         Case{png + " --sim-id " + std::string(65, 'a'), "--sim-id: must be 1 to 64 characters"},
@@ -1226,6 +1275,24 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
       eventually([&] { return server_->log().find("poke (command 1) from ") != std::string::npos; }, kAnswer))
       << server_->log();
 
+  // The window's title names the scene.
+  const Result name = shell(xdo + "search --name 'ladder-view: " + sim_id_ + "' getwindowname");
+  EXPECT_NE(name.output.find("ladder-view: " + sim_id_ + "  '" + info.scene_name + "'"), std::string::npos)
+      << name.output;
+
+  // The plots on (key p), the server stops: the viewer says it waits, and its banner is drawn over the plots. The
+  // banner's line, centred at mid-height, runs into the plots' upper frame (lower right, from x = 0.64 w + 60):
+  // there its letters are bright, where the plots' fill drawn over them had dimmed them to a third.
+  ASSERT_EQ(shell(xdo + "key p").code, 0);
+  const auto banner_over_plots = [&] {
+    const Image img = x.screen();
+    int bright = 0;
+    for (int py = 296; py <= 308; ++py)
+      for (int px = 480; px <= 575; ++px)
+        bright += distance(img.at({px + origin.x, py + origin.y}), view::kText) < 60 ? 1 : 0;
+    return bright >= 20;
+  };
+  EXPECT_FALSE(banner_over_plots()) << "bright pixels in the plots' frame before there is a banner";
   // The server stops: the viewer says it waits; a new server comes: the viewer shows it and its clicks work again.
   const auto count = [&](const std::string& words) {
     const std::string log = viewer.log();
@@ -1236,6 +1303,11 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   server_->signal(SIGTERM);
   ASSERT_TRUE(server_->wait_exit(kStart));
   EXPECT_TRUE(eventually([&] { return count("is not answering; waiting for it") == 1; }, kStart)) << viewer.log();
+  if (!eventually(banner_over_plots, kAnswer)) {
+    write_png(x.screen(), out_ + "-banner.png");
+    ADD_FAILURE() << "the banner is not over the plots: see " << out_ << "-banner.png";
+  }
+  ASSERT_EQ(shell(xdo + "key p").code, 0);  // the plots off again: the ladder's pixels are checked below
   server_.emplace(std::vector<std::string>{kBin + "/server/ladderd", "--domain", std::to_string(domain_), "--sim-id",
                                            sim_id_, "--log-level", "debug"},
                   log_path_ + ".2");

@@ -217,6 +217,8 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
   struct Case { std::string args, words; };
   for (const Case& c : {Case{"--offline --duration 1 --scene /no/such.toml", "--scene /no/such.toml: no such file\n"},
                         Case{"--offline" + scene + " --duration ten", "--duration: 'ten' is not a number"},
+                        Case{"--offline" + scene + " --duration 1 --duration 2 --duration 3",
+                             "--duration is given 3 times; give it once\n"},
                         Case{scene + " --spin-us 1.5", "--spin-us: '1.5' is not a whole number"},
                         Case{"--offline" + scene, "--duration"},
                         Case{"--offline" + scene + " --duration 1e-10",
