@@ -425,10 +425,11 @@ void draw_text_box(cairo_t* cr, double x, double y, double size, std::vector<std
   }
 }
 
-// Each drawn block's number, just right of where the block is on screen.
+// Each drawn block's number (every number_stride()-th), just right of where the block is on screen.
 void draw_numbers(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown) {
+  const std::size_t stride = static_cast<std::size_t>(number_stride(v.length_px));
   for (std::size_t i = 0; i < s.blocks.size(); ++i) {
-    if (!shown[i]) continue;
+    if (!shown[i] || i % stride != 0) continue;
     const Box b = v.block(s.blocks[i]);
     double right = -1e300;
     for (int c = 0; c < 8; ++c)
@@ -487,6 +488,13 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
 }
 
 }  // namespace
+
+int number_stride(double length_px) {
+  constexpr double kLabel = 24;  // [px] a label's box: 12 px text, its line and margins
+  for (int stride = 1;; stride *= 10)
+    for (const int m : {1, 2, 5})
+      if (m * stride * length_px >= kLabel || m * stride >= 1000000) return m * stride;
+}
 
 void draw_banner(cairo_t* cr, const Camera& cam, const std::string& text) {
   if (text.empty()) return;

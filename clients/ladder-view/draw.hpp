@@ -181,6 +181,10 @@ int draw(cairo_t* cr, const Camera& camera, const client::SceneInfo& info, const
 std::string write_png(cairo_surface_t* surface, const std::string& path);
 // Background and HUD only (no state yet).
 void draw_empty(cairo_t* cr, const Camera& camera, const Hud& hud);
+// Which block numbers are drawn (key n, --numbers) when a block is `length_px` long on screen: every 1st, 2nd, 5th,
+// 10th, ..., the first of these whose labels, one block length apart, do not overlap (a 64-block ladder framed in
+// 700 px had 45 labels on top of each other).
+int number_stride(double length_px);
 // A big message centred in the picture (Hud::banner; the window draws it itself, last, over the plots).
 void draw_banner(cairo_t* cr, const Camera& camera, const std::string& text);
 

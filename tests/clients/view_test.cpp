@@ -659,6 +659,48 @@ TEST(Draw, ALineCutInsideACharacterDoesNotStopTheFrame) {
   cairo_surface_destroy(surface);
 }
 
+// Block numbers on a ladder framed small: every 2nd one at 14 px a block, so that no two labels overlap (45 labels
+// lay on top of each other on a 64-block ladder in 700 px). The labels down a column just right of the ladder are
+// counted as separate boxes.
+TEST(Draw, BlockNumbersOfASmallLadderDoNotOverlap) {
+  EXPECT_EQ(view::number_stride(60), 1);
+  EXPECT_EQ(view::number_stride(24), 1);
+  EXPECT_EQ(view::number_stride(14), 2);
+  EXPECT_EQ(view::number_stride(5), 5);
+  EXPECT_EQ(view::number_stride(2), 20);
+  EXPECT_EQ(view::number_stride(0), 1000000);  // (a block of no size: the numbers are not drawn below 12 px anyway)
+  const client::SceneInfo info = classic_info(64);
+  const client::State s = zigzag(64);
+  Camera cam;
+  cam.width = 300;
+  cam.height = 1000;
+  cam.scale = 14 / info.length;  // 14 px a block
+  cam.cy = s.blocks[32].y;
+  view::Hud hud;
+  hud.show = hud.scale_bar = hud.marks = false;
+  hud.numbers = true;
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, cam.width, cam.height);
+  cairo_t* cr = cairo_create(surface);
+  view::draw(cr, cam, info, s, hud);
+  cairo_destroy(cr);
+  cairo_surface_flush(surface);
+  double right = -1e300;  // the ladder's right edge on screen
+  for (const client::Pose& p : s.blocks)
+    for (const Point& c : view::outline(info, p)) right = std::max(right, cam.to_screen(c).x);
+  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
+  const int stride = cairo_image_surface_get_stride(surface) / 4, x = static_cast<int>(right) + 6;
+  int boxes = 0;
+  bool in_box = false;
+  for (int y = 0; y < cam.height; ++y) {
+    const std::uint32_t p = px[y * stride + x];
+    const bool box = distance({int((p >> 16) & 0xff), int((p >> 8) & 0xff), int(p & 0xff)}, view::kBackground) > 20;
+    boxes += box && !in_box ? 1 : 0;
+    in_box = box;
+  }
+  cairo_surface_destroy(surface);
+  EXPECT_EQ(boxes, 32);  // blocks 0, 2, ..., 62, each its own box
+}
+
 // The headings name the scene, cut with "..." past 40 characters (not bytes: never inside a character).
 TEST(Draw, SceneLabelIsQuotedAndCutAtWholeCharacters) {
   EXPECT_EQ(view::scene_label("classic (at rest)"), "'classic (at rest)'");
