@@ -19,14 +19,7 @@ namespace {
 // string, which ends at a NUL (the bytes after one were counted but not written, and the reader refused the whole
 // log), and a reader takes at most kLogMaxText bytes of it. Longer, it is cut on a character's boundary and ends in
 // "...". (The scene's own texts, which the re-run needs whole, are bounded where a scene is read.)
-std::string loggable(std::string s) {
-  if (const std::size_t nul = s.find('\0'); nul != std::string::npos) s.resize(nul);
-  if (s.size() <= transport::kLogMaxText) return s;
-  s.resize(transport::kLogMaxText - 3);
-  while (!s.empty() && (static_cast<unsigned char>(s.back()) & 0xc0) == 0x80) s.pop_back();  // continuation bytes
-  if (!s.empty() && static_cast<unsigned char>(s.back()) >= 0xc0) s.pop_back();             // and their lead byte
-  return s + "...";
-}
+std::string loggable(std::string_view s) { return cut_text(s.substr(0, s.find('\0')), transport::kLogMaxText); }
 
 }  // namespace
 

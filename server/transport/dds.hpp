@@ -254,16 +254,15 @@ void lend(Seq& seq, const std::vector<T>& v) {
   seq._release = false;
 }
 
-// Copies a std::string into a bounded char[N] field, truncating (with "...") when it does not fit.
+// Copies a std::string into a bounded char[N] field, cut at a whole character with "..." when it does not fit
+// (ladder::cut_text).
 template <std::size_t N>
 void copy_text(char (&dst)[N], const std::string& src) {
-  if (src.size() < N) {
-    std::copy(src.begin(), src.end(), dst);
-    dst[src.size()] = '\0';
-    return;
-  }
-  std::copy(src.begin(), src.begin() + (N - 4), dst);
-  std::copy_n("...", 4, dst + (N - 4));
+  static_assert(N > 4);
+  const std::string fits = src.size() < N ? std::string() : ladder::cut_text(src, N - 1);
+  const std::string& text = src.size() < N ? src : fits;
+  std::copy(text.begin(), text.end(), dst);
+  dst[text.size()] = '\0';
 }
 // A bounded char[N] field as a string (never reads past the field, even without a terminator).
 template <std::size_t N>

@@ -296,6 +296,25 @@ TEST(Printable, KeepsValidUtf8AndEscapesControlsAndEveryOtherByte) {
   EXPECT_EQ(printable("\xe2\x80\xa9\xe2\x80\xaf"), "\xe2\x80\xa9\xe2\x80\xaf");      // U+2029, U+202F: kept
 }
 
+// A text cut to a bounded field (a DDS message's char[N], a log's text) is cut at a character's start: a reason that
+// quoted a Cyrillic scene name and was cut inside a letter reached every client with a \xd0 at its end.
+TEST(Printable, TextCutToAFieldEndsOnAWholeCharacter) {
+  EXPECT_EQ(cut_text("short", 8), "short");
+  EXPECT_EQ(cut_text("exactly8", 8), "exactly8");
+  EXPECT_EQ(cut_text("nine char", 8), "nine ...");
+  const std::string zh = "\xd0\x96";  // 'Ж', 2 bytes
+  EXPECT_EQ(cut_text("a" + zh + zh + zh + zh, 8), "a" + zh + zh + "...");  // 5 bytes, then "...": 8
+  EXPECT_EQ(cut_text(zh + zh + zh + zh + zh, 8), zh + zh + "...");         // 5 would end inside a letter: 4
+  EXPECT_EQ(cut_text("\xf0\x9f\x98\x80\xf0\x9f\x98\x80", 7), "\xf0\x9f\x98\x80...");
+  EXPECT_EQ(cut_text("\xf0\x9f\x98\x80\xf0\x9f\x98\x80", 6), "...");                  // no whole character fits
+  char field[8];
+  transport::copy_text(field, "a\xd0\x96\xd0\x96\xd0\x96");  // 7 bytes: fits with its NUL
+  EXPECT_EQ(transport::text_of(field), "a\xd0\x96\xd0\x96\xd0\x96");
+  transport::copy_text(field, "abc" + zh + zh + zh);  // 9 bytes: the old cut kept 'abc' and half a letter
+  EXPECT_EQ(transport::text_of(field), "abc...");
+  EXPECT_EQ(transport::printable(transport::text_of(field)), transport::text_of(field));
+}
+
 TEST_F(Hostile, AClientsTextCannotForgeALogLine) {
   start();
   const std::string forged = "2026-12-05 09:00:00.000 [error] step failed, simulation paused: FORGED";
