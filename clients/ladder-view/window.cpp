@@ -474,14 +474,24 @@ class Viewer {
 }  // namespace
 
 int run_window(const Options& o) {
+  // Without a Wayland display, X11 only: SDL tried Wayland after an X server it could not reach, and libwayland
+  // printed "error: XDG_RUNTIME_DIR is invalid or not set in the environment." before the viewer's own words.
+  const char* asked = std::getenv("SDL_VIDEODRIVER");
+  const char* wayland = std::getenv("WAYLAND_DISPLAY");
+  const bool x11_only = (asked == nullptr || *asked == '\0') && (wayland == nullptr || *wayland == '\0');
+  if (x11_only) SDL_SetHint(SDL_HINT_VIDEODRIVER, "x11");
   if (SDL_Init(SDL_INIT_VIDEO) != 0) {
-    std::cerr << "ladder-view: no display (" << SDL_GetError() << "); use --png FILE or --ascii\n";
+    const char* display = std::getenv("DISPLAY");
+    std::cerr << "ladder-view: no display ("
+              << (!x11_only                              ? ""
+                  : display == nullptr || *display == '\0' ? "DISPLAY and WAYLAND_DISPLAY are not set; "
+                                                           : "no X server answers at DISPLAY; ")
+              << "SDL: " << SDL_GetError() << "); use --png FILE or --ascii\n";
     return kFailed;
   }
   // With no display SDL falls back to its "offscreen" (or "dummy") driver, whose window nobody can see: a viewer
   // that would run for ever showing nothing. Those drivers are taken only when asked for by name (SDL_VIDEODRIVER).
   const char* driver = SDL_GetCurrentVideoDriver();
-  const char* asked = std::getenv("SDL_VIDEODRIVER");
   if (driver != nullptr && (asked == nullptr || *asked == '\0') &&
       (std::strcmp(driver, "offscreen") == 0 || std::strcmp(driver, "dummy") == 0)) {
     std::cerr << "ladder-view: no display (DISPLAY and WAYLAND_DISPLAY are not set or not reachable; SDL offered only "

@@ -1052,6 +1052,13 @@ TEST_F(View, WithoutADisplayTheWindowSaysSoAndExitsOne) {
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_NE(r.output.find("ladder-view: no display"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("use --png FILE or --ascii"), std::string::npos) << r.output;
+  // Nothing before the viewer's own words: SDL tried Wayland after X and libwayland printed "error: XDG_RUNTIME_DIR is
+  // invalid or not set in the environment." first.
+  EXPECT_EQ(r.output.rfind("ladder-view: no display (DISPLAY and WAYLAND_DISPLAY are not set; ", 0), 0u) << r.output;
+  // An X server that does not answer is named as such (display :731: the tests' own Xvfb take :100 to :499).
+  const Result gone = shell("env -u WAYLAND_DISPLAY -u XDG_RUNTIME_DIR DISPLAY=:731 timeout 20 " + kViewer + args);
+  EXPECT_EQ(gone.code, 1) << gone.output;
+  EXPECT_EQ(gone.output.rfind("ladder-view: no display (no X server answers at DISPLAY; ", 0), 0u) << gone.output;
   const Result asked = shell("env -u DISPLAY -u WAYLAND_DISPLAY SDL_VIDEODRIVER=offscreen timeout 3 " + kViewer + args);
   EXPECT_EQ(asked.code, 124) << asked.output;  // still showing the ladder when `timeout` stopped it
   EXPECT_NE(asked.output.find("ladder-view: showing "), std::string::npos) << asked.output;
