@@ -60,6 +60,8 @@ void Io::remember(const AckOut& out) {
 // Commands go to the physics thread in the order they arrived, with one exception: a sender's commands wait until
 // this server's ack and event writers have found a reader in the sender's participant (commands.reader_wait at
 // most). Discovery can bring a client's command writer before its readers, and an ack written then reaches no one.
+// A client that reads acks but no events waits kEventGrace after its ack reader is found, not commands.reader_wait:
+// a participant's readers are discovered together, milliseconds apart.
 // The commands of one sender keep their order. This thread takes every sample as it comes, whatever the senders
 // do: what a sender may not send is refused or dropped here, in constant time, so that a flood neither grows this
 // server's memory nor delays another sender's commands (docs/server.md, "Intake").
@@ -173,15 +175,23 @@ Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c
 }
 
 void Io::check(Sender& s, Clock::time_point now) {
+  constexpr double kEventGrace = 0.1;  // [s]
   s.next_check = now + std::chrono::milliseconds(2);  // the lookups cost a copy per matched reader
-  s.ready = !s.participant || (ack_w_.matched_in(*s.participant) && event_w_.matched_in(*s.participant));
+  const bool ack = !s.participant || ack_w_.matched_in(*s.participant);
+  if (ack && !s.ack_reader_found) s.ack_reader_found = now;
+  const bool events = !s.participant || event_w_.matched_in(*s.participant);
+  s.ready = ack && (events || seconds(now - *s.ack_reader_found) >= std::min(kEventGrace, sh_.config.reader_wait));
   const double waited = seconds(now - s.first_seen);
   if (s.ready) {
-    if (waited > 0) spdlog::debug("client '{}': its readers found after {:.0f} ms", s.client, 1e3 * waited);
+    if (!events)
+      spdlog::debug("client '{}': no event reader {:.0f} ms after its ack reader was found; its commands go on (it "
+                    "hears their answers, not the events)",
+                    s.client, 1e3 * seconds(now - *s.ack_reader_found));
+    else if (waited > 0)
+      spdlog::debug("client '{}': its readers found after {:.0f} ms", s.client, 1e3 * waited);
   } else if (waited >= sh_.config.reader_wait) {
     s.ready = true;
-    spdlog::warn("client '{}': its ack or event reader not found in {:g} s; its commands go on, and it may miss "
-                 "their answers",
+    spdlog::warn("client '{}': its ack reader not found in {:g} s; its commands go on, and it may miss their answers",
                  s.client, sh_.config.reader_wait);
   }
 }

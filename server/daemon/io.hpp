@@ -56,6 +56,7 @@ class Io {
     std::string client;                     // the client id of its first command, for the log
     std::optional<dds_guid_t> participant;  // none: the writer had left when its first command was read
     Clock::time_point first_seen, next_check;
+    std::optional<Clock::time_point> ack_reader_found;  // when this server's ack writer found its reader
     bool ready = false;
     std::deque<Incoming> held;  // in the order they came
     Bucket commands, refusals;  // commands.rate and commands.burst, each

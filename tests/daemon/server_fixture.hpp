@@ -129,9 +129,9 @@ struct BareSender {
     c.command_id = id;
     command_w.write(c);
   }
-  void add_readers() {
+  void add_readers(bool events = true) {
     ack_r.emplace(participant, topics.ack, transport::Profile::CommandAck);
-    event_r.emplace(participant, topics.event, transport::Profile::Event);
+    if (events) event_r.emplace(participant, topics.event, transport::Profile::Event);
   }
   // The ids of the acks that reach it within kAnswer, once one has.
   std::vector<std::uint64_t> acked() {

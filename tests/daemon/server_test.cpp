@@ -622,8 +622,24 @@ TEST_F(Server, ACommandOfASenderWithoutReadersIsTakenAfterTheReaderWait) {
   bare.pause(1);
   ASSERT_TRUE(c().wait_state([](const client::State& st) { return st.paused; }, kAnswer));
   EXPECT_GE(Clock::now() - sent, Millis(500)) << "taken before the 0.5 s were over";
-  EXPECT_NE(server_->log().find("client 'bare': its ack or event reader not found in 0.5 s"), std::string::npos)
+  EXPECT_NE(server_->log().find("client 'bare': its ack reader not found in 0.5 s"), std::string::npos)
       << server_->log();
+}
+
+// A client of its own making that reads the answers but not the events (docs/server.md, "Your own client"): its
+// commands wait for its ack reader, then 0.1 s for an event reader that does not come, not commands.reader_wait
+// (60 s here; it was 2 s by default, for every first command of such a client).
+TEST_F(Server, ASenderThatReadsAcksButNoEventsIsAnsweredWithoutTheReaderWait) {
+  start(with_config("[commands]\nreader_wait = 60\n"));
+  BareSender bare(domain_, sim_id_);
+  bare.add_readers(/*events=*/false);
+  ASSERT_EQ(bare.command_w.matched(), 1u);
+  bare.pause(3);
+  EXPECT_EQ(bare.acked(), std::vector<std::uint64_t>{3});
+  const auto deadline = Clock::now() + kAnswer;  // (the log line is written before the command is passed on)
+  while (server_->log().find("client 'bare': no event reader ") == std::string::npos && Clock::now() < deadline)
+    std::this_thread::sleep_for(Millis(20));
+  EXPECT_NE(server_->log().find("client 'bare': no event reader "), std::string::npos) << server_->log();
 }
 
 // A client drops a State whose sequences disagree (a broken or hostile publisher: five numbers for two poses),
