@@ -1,5 +1,6 @@
 #include "app.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -107,22 +108,56 @@ std::string scene_label(const std::string& name, std::size_t max_chars) {
 }
 
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats) {
-  std::vector<std::string> out;
+  std::vector<std::string> lines{"scene " + scene_label(info.scene_name, kOverlayColumns - 12)};
   char buf[160];
-  std::snprintf(buf, sizeof buf, "%s: %u blocks, top %s, dt %g ms", info.scene_name.c_str(), info.blocks,
-                info.top.c_str(), info.dt * 1e3);
-  out.emplace_back(buf);
-  if (!stats) return out;
-  std::snprintf(buf, sizeof buf, "step p50 %.1f us  p99 %.1f us  missed ticks %llu", stats->step_p50_us,
-                stats->step_p99_us, static_cast<unsigned long long>(stats->missed_deadlines));
-  out.emplace_back(buf);
-  std::snprintf(buf, sizeof buf, "solver %u it, residual %.2g m, largest hinge error %.2g m", stats->solver_iterations,
-                stats->solver_residual, stats->max_hinge_error);
-  out.emplace_back(buf);
-  std::snprintf(buf, sizeof buf, "energy %.6f J  commands %llu accepted, %llu refused", stats->energy,
-                static_cast<unsigned long long>(stats->commands_accepted),
-                static_cast<unsigned long long>(stats->commands_refused));
-  out.emplace_back(buf);
+  std::snprintf(buf, sizeof buf, "%u blocks, top %.12s, dt %g ms", info.blocks, info.top.c_str(), info.dt * 1e3);
+  lines.emplace_back(buf);
+  if (stats) {
+    std::snprintf(buf, sizeof buf, "step p50 %.3g us, p99 %.3g us", stats->step_p50_us, stats->step_p99_us);
+    lines.emplace_back(buf);
+    std::snprintf(buf, sizeof buf, "missed ticks %llu", static_cast<unsigned long long>(stats->missed_deadlines));
+    lines.emplace_back(buf);
+    std::snprintf(buf, sizeof buf, "solver %u it, residual %.2g m", stats->solver_iterations, stats->solver_residual);
+    lines.emplace_back(buf);
+    std::snprintf(buf, sizeof buf, "largest hinge error %.2g m", stats->max_hinge_error);
+    lines.emplace_back(buf);
+    std::snprintf(buf, sizeof buf, "energy %.6g J", stats->energy);
+    lines.emplace_back(buf);
+    std::snprintf(buf, sizeof buf, "commands %llu accepted, %llu refused",
+                  static_cast<unsigned long long>(stats->commands_accepted),
+                  static_cast<unsigned long long>(stats->commands_refused));
+    lines.emplace_back(buf);
+  }
+  std::vector<std::string> out;  // (a peer's figures may be long: 20 digits of a count)
+  for (const std::string& l : lines)
+    for (std::string& w : wrap(l, kOverlayColumns)) out.push_back(std::move(w));
+  return out;
+}
+
+std::vector<std::string> wrap(const std::string& text, std::size_t columns) {
+  const auto starts = [](char c) { return (static_cast<unsigned char>(c) & 0xC0) != 0x80; };  // a character
+  const auto count = [&](const std::string& w) {
+    return static_cast<std::size_t>(std::count_if(w.begin(), w.end(), starts));
+  };
+  std::vector<std::string> out;
+  std::string line;
+  for (std::size_t at = 0; at <= text.size();) {
+    const std::size_t space = std::min(text.find(' ', at), text.size());
+    std::string word = text.substr(at, space - at);
+    at = space + 1;
+    if (!line.empty() && count(line) + 1 + count(word) > columns) out.push_back(std::exchange(line, {}));
+    while (count(word) > columns) {  // a word longer than a line (a path): cut into lines of its own
+      std::size_t cut = 0;
+      for (std::size_t c = 0; c < columns; ++c)
+        for (++cut; cut < word.size() && !starts(word[cut]);) ++cut;
+      if (!line.empty()) out.push_back(std::exchange(line, {}));
+      out.push_back(word.substr(0, cut));
+      word.erase(0, cut);
+    }
+    if (!line.empty()) line += ' ';
+    line += word;
+  }
+  out.push_back(line);
   return out;
 }
 

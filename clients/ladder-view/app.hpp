@@ -111,6 +111,11 @@ std::string camera_text(const Camera& c);
 // The scene's name as the headings show it: quoted, and past `max_chars` characters cut with "..." (a name may be
 // 1024 bytes long).
 std::string scene_label(const std::string& name, std::size_t max_chars = 40);
+// The window's overlay (key o) stands down the left side, at most this many characters wide: at the default 900 px
+// it then stays clear of the hand that holds the top block (its lines were up to 60 characters, and it covered it).
+inline constexpr std::size_t kOverlayColumns = 38;
+// `text` in lines of at most `columns` characters, broken at spaces (a longer word cut where it must).
+std::vector<std::string> wrap(const std::string& text, std::size_t columns);
 // The HUD's overlay lines from the latest Stats and SceneInfo.
 std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::optional<ladder_msg_Stats>& stats);
 

@@ -245,11 +245,13 @@ class Viewer {
     if (overlay_) {
       if (s) hud.lines = stats_lines(*link_->feed.info(), link_->feed.stats());
       char buf[128];
-      std::snprintf(buf, sizeof buf, "draw %.1f ms, %d blocks on screen%s", draw_ms_, drawn_,
-                    follow_ ? ", following the ripple" : "");
+      std::snprintf(buf, sizeof buf, "draw %.1f ms, %d blocks on screen", draw_ms_, drawn_);
       hud.lines.emplace_back(buf);
+      if (follow_) hud.lines.emplace_back("following the ripple (f: stop)");
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      if (const std::string a = link_->outbox.recent(); !a.empty()) hud.lines.push_back(a);
+      // (An answer may be long, a refusal's reason: wrapped, so that the overlay keeps its width.)
+      for (const std::string& l : wrap(link_->outbox.recent(), kOverlayColumns))
+        if (!l.empty()) hud.lines.push_back(l);
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
       // The last answer while it is news, and the hint always.

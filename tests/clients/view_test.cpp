@@ -1367,6 +1367,72 @@ TEST_F(View, WindowUnderXvfbShowsTheLadderClicksPokeAndItOutlivesTheServer) {
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
 }
 
+// The overlay (key o) at the default window size stays clear of the hand that holds the top block: its lines were up to
+// 60 characters long and it covered the fingers (darkened to under half their brightness). Its text lines are at most
+// kOverlayColumns characters, a long answer wrapped.
+TEST_F(View, TheOverlayAtTheDefaultSizeLeavesTheHandInSight) {
+  const client::State s = pause();
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process viewer({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_},
+                 out_ + "-viewer.log");
+  std::optional<Camera> cam;
+  ASSERT_TRUE(eventually([&] { return (cam = camera_in(viewer.log(), 900, 700)).has_value(); }, kStart))
+      << viewer.log();
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << viewer.log();
+  const client::SceneInfo info = *client_->scene_info();
+  const Point hand = cam->project(view::hand_centre(info, s.blocks[0]));
+  const auto bright_hand = [&] {
+    const Rgb c = x.screen().at({hand.x + where->x, hand.y + where->y});
+    return is_hand(c) && c.r + c.g + c.b > 300;  // the hand's colours lit or shaded (339 and up), not under a box
+  };
+  ASSERT_TRUE(eventually(bright_hand, kStart)) << "no hand at " << hand.x << ", " << hand.y;
+  // The overlay on, once the server's statistics (its longest lines) have come: drawn (its box's left margin at x = 8
+  // is darker than the background), the hand still bright.
+  ASSERT_TRUE(client_->wait_stats([](const ladder_msg_Stats&) { return true; }, kStart));
+  std::this_thread::sleep_for(Millis(300));
+  const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(where->x + 450)) + " " +
+                  std::to_string(int(where->y + 690)) + " key o").code, 0);
+  const auto overlay = [&] {
+    const Rgb c = x.screen().at({8 + where->x, 120 + where->y});
+    return distance(c, view::kBackground) > 15 && c.r + c.g + c.b < 60;
+  };
+  EXPECT_TRUE(eventually(overlay, kStart)) << "the overlay was not drawn";
+  EXPECT_TRUE(bright_hand()) << "the overlay covers the hand at " << hand.x << ", " << hand.y;
+  viewer.signal(SIGTERM);
+  EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
+TEST(Draw, OverlayLinesAreWrappedToItsWidth) {
+  client::SceneInfo info = classic_info(100000);
+  info.scene_name = "Classic Jacob's ladder, with every setting written out in its name";
+  info.top = "held";
+  info.dt = 1e-3;
+  ladder_msg_Stats st{};
+  st.step_p50_us = 123.4;
+  st.step_p99_us = 5678.9;
+  st.missed_deadlines = 123456789;
+  st.solver_iterations = 30;
+  st.solver_residual = 9.9e-13;
+  st.max_hinge_error = 1.2e-12;
+  st.energy = -1234.567891;
+  st.commands_accepted = 1000000;
+  st.commands_refused = 1000000;
+  for (const std::string& l : view::stats_lines(info, st))
+    EXPECT_LE(l.size(), view::kOverlayColumns) << l;
+  using L = std::vector<std::string>;
+  EXPECT_EQ(view::wrap("tip: accepted at t = 1.234 s", 38), L{"tip: accepted at t = 1.234 s"});
+  EXPECT_EQ(view::wrap("poke block 9: refused: no block 9 (the ladder has blocks 0 to 5)", 38),
+            (L{"poke block 9: refused: no block 9 (the", "ladder has blocks 0 to 5)"}));
+  EXPECT_EQ(view::wrap("load: refused: /a/very/long/path/to/a/scene/file.toml:3:7", 20),
+            (L{"load: refused:", "/a/very/long/path/to", "/a/scene/file.toml:3", ":7"}));
+  EXPECT_EQ(view::wrap("ЖЖЖ ЖЖЖ", 3), (L{"ЖЖЖ", "ЖЖЖ"}));  // characters, not bytes
+  EXPECT_EQ(view::wrap("", 38), L{""});
+}
+
 // Two ladders on the domain: Tab in the window switches to the other one (found by DDS discovery), which is then
 // framed and shown, and a click pokes that ladder's block.
 TEST_F(View, WindowSwitchesToTheOtherLadderOfTheDomainWithTab) {
