@@ -49,6 +49,8 @@ TEST_F(Installed, TheLayoutIsThere) {
                         "share/ladder/scenes/toy-1889.toml", "share/ladder/scenes/tall.toml",
                         "share/ladder/scenes/tall-double-ripple.toml",
                         "share/ladder/cyclonedds.xml", "share/ladder/cyclonedds-network.xml",
+                        "share/ladder/ladder.idl", "share/doc/ladder/examples/c-client/ladder_client.c",
+                        "share/doc/ladder/examples/c-client/CMakeLists.txt",
                         "lib/systemd/system/ladderd.service", "lib/systemd/system/ladderd@.service",
                         "share/doc/ladder/install.md"})
     EXPECT_TRUE(fs::is_regular_file(prefix_ / f)) << f;
@@ -96,6 +98,33 @@ TEST_F(Installed, ServesTheDefaultSceneAndLoadsInstalledOnes) {
   const Result load = from_root(ctl + "load long");
   EXPECT_EQ(load.code, 0) << load.output << server.log();
   EXPECT_NE(server.log().find("scene 'Long ladder' started (1000 blocks)"), std::string::npos) << server.log();
+  server.signal(SIGTERM);
+  EXPECT_TRUE(server.wait_exit(std::chrono::milliseconds(10000)).has_value());
+}
+
+// A client of your own (docs/server.md, "Your own client"): the installed C example, built on its own against the
+// installed ladder.idl and Cyclone DDS with CMake, run with the installed Cyclone configuration against the
+// installed server. It sees the ladder, its tip is accepted and the ripple's first flip-flop comes as an event, and
+// its poke of a block that does not exist is refused with the server's reason.
+TEST_F(Installed, AClientOfYourOwnBuiltFromTheInstalledExampleTipsAndHearsARefusal) {
+  const fs::path example = prefix_ / "share/doc/ladder/examples/c-client", build = prefix_ / "example-build";
+  const std::string cmake = CMAKE_COMMAND;
+  const Result made = from_root(cmake + " -S " + example.string() + " -B " + build.string() + " && " + cmake +
+                                " --build " + build.string());
+  ASSERT_EQ(made.code, 0) << made.output;
+  const std::string domain = std::to_string(1 + (getpid() + 7) % 230), id = "own-" + std::to_string(getpid());
+  Process server({"/bin/sh", "-c",
+                  "cd / && exec " + bin("ladderd") + " --config " + (prefix_ / "etc/ladder/ladderd.toml").string() +
+                      " --domain " + domain + " --sim-id " + id},
+                 kBuild + "/tests/Installed.own-client.server.log");
+  const Result r = from_root("CYCLONEDDS_URI=file://" + (prefix_ / "share/ladder/cyclonedds.xml").string() + " " +
+                             (build / "ladder-c-client").string() + " " + domain + " " + id);
+  EXPECT_EQ(r.code, 0) << r.output << server.log();
+  EXPECT_NE(r.output.find("state: t = "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" s, 6 blocks, block 0 at ("), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("tip: accepted at t = "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("event: flip_flop at hinge 1, t = "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("poke block 99: refused: no block 99 (blocks are 0..5)\n"), std::string::npos) << r.output;
   server.signal(SIGTERM);
   EXPECT_TRUE(server.wait_exit(std::chrono::milliseconds(10000)).has_value());
 }
