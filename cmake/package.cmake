@@ -20,7 +20,8 @@ install(FILES ${PROJECT_SOURCE_DIR}/config/cyclonedds.xml ${PROJECT_SOURCE_DIR}/
               ${PROJECT_SOURCE_DIR}/config/cyclonedds-docker.xml ${PROJECT_SOURCE_DIR}/msgs/ladder.idl
         DESTINATION ${CMAKE_INSTALL_DATADIR}/ladder)
 # A client of your own: its source, to build against the IDL above (docs/server.md, "Your own client").
-install(FILES ${PROJECT_SOURCE_DIR}/examples/c-client/ladder_client.c ${PROJECT_SOURCE_DIR}/examples/c-client/CMakeLists.txt
+install(FILES ${PROJECT_SOURCE_DIR}/examples/c-client/ladder_client.c
+              ${PROJECT_SOURCE_DIR}/examples/c-client/CMakeLists.txt
         DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples/c-client)
 install(CODE "set(LADDER_SOURCE_DIR \"${PROJECT_SOURCE_DIR}\")
 set(LADDER_ETC_DIR \"${LADDER_ETC_DIR}\")

@@ -255,7 +255,8 @@ class Viewer {
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
       // The last answer while it is news, and the hint always.
-      if (const std::string a = link_->outbox.recent(); !a.empty()) hud.lines.push_back(a);
+      for (const std::string& l : wrap(link_->outbox.recent(), kOverlayColumns))
+        if (!l.empty()) hud.lines.push_back(l);
       hud.lines.emplace_back("o: stats, keys and colours");
     }
     // The banner goes over everything, the plots too: drawn last.

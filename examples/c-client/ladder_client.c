@@ -119,12 +119,14 @@ int main(int argc, char** argv) {
 
   const dds_entity_t participant = make(dds_create_participant(domain, NULL, NULL), "participant");
   /* Topic names are "ladder/<Type>"; every topic is keyed by sim id. */
-  const dds_entity_t state_t = make(dds_create_topic(participant, &ladder_msg_State_desc, "ladder/State", NULL, NULL), "topic");
+  const dds_entity_t state_t =
+      make(dds_create_topic(participant, &ladder_msg_State_desc, "ladder/State", NULL, NULL), "topic");
   const dds_entity_t command_t =
       make(dds_create_topic(participant, &ladder_msg_Command_desc, "ladder/Command", NULL, NULL), "topic");
   const dds_entity_t ack_t =
       make(dds_create_topic(participant, &ladder_msg_CommandAck_desc, "ladder/CommandAck", NULL, NULL), "topic");
-  const dds_entity_t event_t = make(dds_create_topic(participant, &ladder_msg_Event_desc, "ladder/Event", NULL, NULL), "topic");
+  const dds_entity_t event_t =
+      make(dds_create_topic(participant, &ladder_msg_Event_desc, "ladder/Event", NULL, NULL), "topic");
 
   const dds_entity_t states = reader(participant, state_t, 1, 1);
   const dds_entity_t acks = reader(participant, ack_t, 64, 0);
@@ -138,15 +140,16 @@ int main(int argc, char** argv) {
   /* Connected once a State has come and the server's command reader and ack writer have been found: a command sent
    * before discovery has matched them is lost (DDS drops it, volatile). With several ladders on the domain the
    * counts are any server's; docs/network.md says how to tell ours. */
-  int ready = print_state(states, 10);
-  for (const double end = now_s() + 10; ready && now_s() < end; dds_sleepfor(DDS_MSECS(10))) {
-    dds_publication_matched_status_t to_server;
-    dds_subscription_matched_status_t from_server;
-    dds_get_publication_matched_status(commands, &to_server);
-    dds_get_subscription_matched_status(acks, &from_server);
-    if (to_server.current_count > 0 && from_server.current_count > 0) break;
-  }
-  if (!ready) {
+  int connected = 0;
+  if (print_state(states, 10))
+    for (const double end = now_s() + 10; !connected && now_s() < end; dds_sleepfor(DDS_MSECS(10))) {
+      dds_publication_matched_status_t to_server;
+      dds_subscription_matched_status_t from_server;
+      dds_get_publication_matched_status(commands, &to_server);
+      dds_get_subscription_matched_status(acks, &from_server);
+      connected = to_server.current_count > 0 && from_server.current_count > 0;
+    }
+  if (!connected) {
     fprintf(stderr,
             "ladder-c-client: no ladderd with sim id '%s' on DDS domain %d in 10 s (is CYCLONEDDS_URI the server's "
             "configuration? docs/network.md)\n",
