@@ -698,6 +698,21 @@ Camera fit(const client::SceneInfo& info, const client::State& state, int width,
     const Box b = v.block(state.blocks[i]);
     for (int c = 0; c < 8; ++c) extend(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1));
   }
+  // A ladder hanging from a held or pinned top block is framed with the room its blocks sweep as a ripple runs down
+  // (a block turns about a hinge on the ladder's line: a length and a thickness to each side; below, a block's
+  // diagonal a block, the longest the hinges' pitch can be), so that the frame keeps its scale before a tip, during it
+  // and after (two snapshots for a handout were framed differently: 1653 and 1436 px/m). The top block's pose moves
+  // by a thickness as the hand turns it, and the frame's centre with it.
+  if ((info.top == "held" || info.top == "pinned") && std::isfinite(info.length) && std::isfinite(info.thickness)) {
+    const client::Pose& top = state.blocks[0];
+    const double side = info.length + info.thickness, half_depth = 0.5 * depth_of(info);
+    const double up = top.y + 0.5 * info.length + info.thickness;
+    const double hinge_pitch = std::hypot(info.length, info.thickness);
+    const double down = top.y - (static_cast<double>(n) - 0.5) * hinge_pitch - info.thickness;
+    for (const double x : {top.x - side, top.x + side})
+      for (const double y : {up, down})
+        for (const double z : {-half_depth, half_depth}) extend({x, y, z});
+  }
   // 10 % margin on every side; never so close that a block is bigger than the image.
   const double span_x = std::max(hi_x - lo_x, info.length), span_y = std::max(hi_y - lo_y, info.length);
   cam.scale = 0.8 * std::min(width / span_x, height / span_y);

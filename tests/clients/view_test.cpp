@@ -832,6 +832,15 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockAndItsTapesWhereTheStateHasThem
     EXPECT_EQ(facing_side(*cam, after.blocks[i]), -facing_side(*cam, before.blocks[i])) << "block " << i;
   EXPECT_EQ(tapes_seen(img1, *cam, info, after), "-ococ-");
   EXPECT_TRUE(is_hand(img1.at(cam->project(view::hand_centre(info, after.blocks[0])))));
+  // Framed by the viewer itself, the ladder after the tip is framed at the scale it was before (a handout's two
+  // snapshots were not, 1653 and 1436 px/m: the frame followed the blocks' bounds, which a tip changes), its centre
+  // within a block's thickness (the top block's pose moves by that much as the hand turns it).
+  const Result c = viewer("--png " + out_ + "-after-framed.png --size 500x700 --at " + at);
+  ASSERT_EQ(c.code, 0) << c.output;
+  const auto framed = camera_in(c.output, 500, 700);
+  ASSERT_TRUE(framed) << c.output;
+  EXPECT_NEAR(framed->scale, cam->scale, 1e-6 * cam->scale) << a.output << c.output;
+  EXPECT_LE(std::hypot(framed->cx - cam->cx, framed->cy - cam->cy), info.thickness) << a.output << c.output;
 }
 
 TEST_F(View, AsciiShowsTheSixBlocksNumbered) {
