@@ -135,6 +135,7 @@ std::vector<std::string> stats_lines(const client::SceneInfo& info, const std::o
 }
 
 std::vector<std::string> wrap(const std::string& text, std::size_t columns) {
+  columns = std::max<std::size_t>(columns, 1);  // (0 would cut a word into empty lines for ever)
   const auto starts = [](char c) { return (static_cast<unsigned char>(c) & 0xC0) != 0x80; };  // a character
   const auto count = [&](const std::string& w) {
     return static_cast<std::size_t>(std::count_if(w.begin(), w.end(), starts));

@@ -82,11 +82,13 @@ inline std::string printable_lines(std::string_view text) {
   return out;
 }
 
-// `text` in at most `max_bytes` bytes (at least 4): as it is when it fits, else cut at the start of a character and
-// ended with "...". A cut inside a UTF-8 character left bytes that every reader showed as \xNN. The DDS messages'
-// bounded text fields (transport::copy_text) and the session log's texts are cut with it.
+// `text` in at most `max_bytes` bytes: as it is when it fits, else cut at the start of a character and ended with
+// "..." (with room for no character, as much of "..." as fits). A cut inside a UTF-8 character left bytes that every
+// reader showed as \xNN. The DDS messages' bounded text fields (transport::copy_text) and the session log's texts
+// are cut with it.
 inline std::string cut_text(std::string_view text, std::size_t max_bytes) {
   if (text.size() <= max_bytes) return std::string(text);
+  if (max_bytes <= 3) return std::string(max_bytes, '.');
   std::size_t end = max_bytes - 3;
   while (end > 0 && (static_cast<unsigned char>(text[end]) & 0xc0) == 0x80) --end;  // text[end] begins a character
   return std::string(text.substr(0, end)) + "...";

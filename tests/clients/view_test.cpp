@@ -1440,6 +1440,7 @@ TEST(Draw, OverlayLinesAreWrappedToItsWidth) {
             (L{"load: refused:", "/a/very/long/path/to", "/a/scene/file.toml:3", ":7"}));
   EXPECT_EQ(view::wrap("ЖЖЖ ЖЖЖ", 3), (L{"ЖЖЖ", "ЖЖЖ"}));  // characters, not bytes
   EXPECT_EQ(view::wrap("", 38), L{""});
+  EXPECT_EQ(view::wrap("ab c", 0), (L{"a", "b", "c"}));  // (no width: a character a line, not a loop for ever)
 }
 
 // Two ladders on the domain: Tab in the window switches to the other one (found by DDS discovery), which is then

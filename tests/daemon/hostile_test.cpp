@@ -307,6 +307,8 @@ TEST(Printable, TextCutToAFieldEndsOnAWholeCharacter) {
   EXPECT_EQ(cut_text(zh + zh + zh + zh + zh, 8), zh + zh + "...");         // 5 would end inside a letter: 4
   EXPECT_EQ(cut_text("\xf0\x9f\x98\x80\xf0\x9f\x98\x80", 7), "\xf0\x9f\x98\x80...");
   EXPECT_EQ(cut_text("\xf0\x9f\x98\x80\xf0\x9f\x98\x80", 6), "...");                  // no whole character fits
+  EXPECT_EQ(cut_text("four", 3), "...");
+  EXPECT_EQ(cut_text("four", 0), "");
   char field[8];
   transport::copy_text(field, "a\xd0\x96\xd0\x96\xd0\x96");  // 7 bytes: fits with its NUL
   EXPECT_EQ(transport::text_of(field), "a\xd0\x96\xd0\x96\xd0\x96");
