@@ -211,6 +211,19 @@ class Viewer {
                     : fit(info, s, screen_.width(), screen_.height());
   }
 
+  // Key f: follow the ripple, or stop. A ladder framed so small that a block is under kFollowPx long on screen (a tall
+  // one: 14 px) is zoomed about the centre until it is that long, so that the turning blocks can be told apart.
+  void toggle_follow() {
+    static constexpr double kFollowPx = 40;
+    follow_ = !follow_;
+    const client::SceneInfo* info = link_->feed.info();
+    if (follow_ && info && info->length > 0 && camera_.scale * info->length < kFollowPx)
+      camera_.zoom_about({0.5 * camera_.width, 0.5 * camera_.height}, kFollowPx / (camera_.scale * info->length));
+    std::printf("ladder-view: %s; %s\n", follow_ ? "following the ripple" : "no longer following the ripple",
+                camera_text(camera_).c_str());
+    std::fflush(stdout);
+  }
+
   void step_follow() {
     if (!ripple_) return;
     const double dx = ripple_->x - camera_.cx, dy = ripple_->y - camera_.cy;
@@ -348,7 +361,7 @@ class Viewer {
         break;
       case SDLK_s: send(cmd::step(shift ? 100 : 1), shift ? "step 100" : "step 1"); break;
       case SDLK_r: send(cmd::reset(), "reset"); break;
-      case SDLK_f: follow_ = !follow_; break;
+      case SDLK_f: toggle_follow(); break;
       case SDLK_n: numbers_ = !numbers_; break;
       case SDLK_p: plots_ = !plots_; break;
       case SDLK_TAB: switch_ladder(); break;

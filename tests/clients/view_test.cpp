@@ -1415,6 +1415,46 @@ TEST_F(View, TheOverlayAtTheDefaultSizeLeavesTheHandInSight) {
   EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
 }
 
+// Key f on a ladder framed small (blocks 14 px long here, as tall.toml's 64 blocks in the default window): the view
+// zooms in about its centre until a block is 40 px long, and follows the ripple; f again stops, keeping the zoom.
+TEST_F(View, FollowingTheRippleZoomsASmallLadderIn) {
+  pause();
+  Xvfb x(out_ + "-x");
+  ASSERT_TRUE(eventually([&] { return x.ready(); }, kStart)) << x.log();
+  Process viewer({"/usr/bin/env", "DISPLAY=" + x.display(), kViewer, "--domain", std::to_string(domain_), "--sim-id",
+                  sim_id_, "--size", "160x120"},
+                 out_ + "-viewer.log");
+  std::optional<Camera> cam;
+  ASSERT_TRUE(eventually([&] { return (cam = camera_in(viewer.log(), 160, 120)).has_value(); }, kStart))
+      << viewer.log();
+  const client::SceneInfo info = *client_->scene_info();
+  ASSERT_LT(cam->scale * info.length, 20) << viewer.log();
+  const auto where = window_origin(x, "ladder-view: " + sim_id_);
+  ASSERT_TRUE(where) << viewer.log();
+  const std::string xdo = "DISPLAY=" + x.display() + " xdotool ";
+  const auto after = [&](const std::string& words) -> std::optional<Camera> {
+    const std::string log = viewer.log();
+    const std::size_t at = log.find(words);
+    return at == std::string::npos ? std::nullopt : camera_in(log.substr(at), 160, 120);
+  };
+  // (Not the window's centre: that is the screen's, where the pointer starts, and --sync would wait for a motion.)
+  ASSERT_EQ(shell(xdo + "mousemove --sync " + std::to_string(int(where->x + 40)) + " " +
+                  std::to_string(int(where->y + 30)) + " key f").code, 0);
+  std::optional<Camera> following;
+  ASSERT_TRUE(eventually([&] { return (following = after("following the ripple;")).has_value(); }, kStart))
+      << viewer.log();
+  EXPECT_NEAR(following->scale * info.length, 40, 1e-6) << viewer.log();
+  EXPECT_NEAR(following->cx, cam->cx, 1e-9);  // zoomed about the centre
+  EXPECT_NEAR(following->cy, cam->cy, 1e-9);
+  ASSERT_EQ(shell(xdo + "key f").code, 0);
+  std::optional<Camera> stopped;
+  ASSERT_TRUE(eventually([&] { return (stopped = after("no longer following the ripple;")).has_value(); }, kStart))
+      << viewer.log();
+  EXPECT_NEAR(stopped->scale, following->scale, 1e-9 * following->scale);
+  viewer.signal(SIGTERM);
+  EXPECT_TRUE(viewer.wait_exit(kStart).has_value());
+}
+
 TEST(Draw, OverlayLinesAreWrappedToItsWidth) {
   client::SceneInfo info = classic_info(100000);
   info.scene_name = "Classic Jacob's ladder, with every setting written out in its name";
