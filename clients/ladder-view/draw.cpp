@@ -426,8 +426,17 @@ void draw_text_box(cairo_t* cr, double x, double y, double size, std::vector<std
 }
 
 // Each drawn block's number (every number_stride()-th), just right of where the block is on screen.
+// A label that would cover one already drawn (the two blocks of a folded pair lie side by side at one height) is
+// moved right, past it.
 void draw_numbers(cairo_t* cr, const View& v, const client::State& s, const std::vector<char>& shown) {
+  constexpr double kSize = 12, kPad = 4, kHeight = 1.3 * kSize + 2 * kPad;  // draw_text_box's box
   const std::size_t stride = static_cast<std::size_t>(number_stride(v.length_px));
+  cairo_select_font_face(cr, "DejaVu Sans Mono", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, kSize);
+  struct Placed {
+    double left, top, right;
+  };
+  std::vector<Placed> placed;
   for (std::size_t i = 0; i < s.blocks.size(); ++i) {
     if (!shown[i] || i % stride != 0) continue;
     const Box b = v.block(s.blocks[i]);
@@ -435,7 +444,21 @@ void draw_numbers(cairo_t* cr, const View& v, const client::State& s, const std:
     for (int c = 0; c < 8; ++c)
       right = std::max(right, v.screen(b.corner(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1)).x);
     const Point centre = v.cam.to_screen({s.blocks[i].x, s.blocks[i].y});
-    draw_text_box(cr, right + 8, centre.y - 7, 12, {std::to_string(i)});
+    const std::string label = std::to_string(i);
+    cairo_text_extents_t e;
+    cairo_text_extents(cr, label.c_str(), &e);
+    double x = right + 8;
+    const double y = centre.y - 7;
+    for (bool moved = true; moved;) {
+      moved = false;
+      for (const Placed& p : placed)
+        if (x - kPad < p.right && x + e.x_advance + kPad > p.left && std::abs(y - p.top) < kHeight) {
+          x = p.right + 2 * kPad;  // its box begins kPad after the other's ends
+          moved = true;
+        }
+    }
+    placed.push_back({x - kPad, y, x + e.x_advance + kPad});
+    draw_text_box(cr, x, y, kSize, {label});
   }
 }
 

@@ -701,6 +701,44 @@ TEST(Draw, BlockNumbersOfASmallLadderDoNotOverlap) {
   EXPECT_EQ(boxes, 32);  // blocks 0, 2, ..., 62, each its own box
 }
 
+// A folded pair's two blocks lie side by side at one height: their numbers were drawn on top of each other. The
+// second is moved right, past the first: along the labels' row, right of the ladder, two boxes.
+TEST(Draw, TheNumbersOfAFoldedPairDoNotOverlap) {
+  const client::SceneInfo info = classic_info(4);
+  client::State s = zigzag(4);
+  s.blocks[3] = {s.blocks[2].x + info.thickness, s.blocks[2].y, s.blocks[2].theta + M_PI};  // folded onto block 2
+  Camera cam;
+  cam.width = 300;
+  cam.height = 300;
+  cam.scale = 500;  // the pair's right edges 6.5 px apart: their labels' boxes (15 px wide) overlapped
+  cam.cy = s.blocks[1].y;
+  view::Hud hud;
+  hud.show = hud.scale_bar = hud.marks = false;
+  hud.numbers = true;
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, cam.width, cam.height);
+  cairo_t* cr = cairo_create(surface);
+  view::draw(cr, cam, info, s, hud);
+  cairo_destroy(cr);
+  cairo_surface_flush(surface);
+  double right = -1e300;
+  for (const client::Pose& p : s.blocks)
+    for (const Point& c : view::outline(info, p)) right = std::max(right, cam.to_screen(c).x);
+  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
+  const int stride = cairo_image_surface_get_stride(surface) / 4;
+  // (the row of the boxes' top margin, above the digits, whose antialiased edges come near the background)
+  const int y = static_cast<int>(cam.to_screen({s.blocks[2].x, s.blocks[2].y}).y) - 9;
+  int boxes = 0;
+  bool in_box = false;
+  for (int x = static_cast<int>(right) + 2; x < cam.width; ++x) {
+    const std::uint32_t p = px[y * stride + x];
+    const bool box = distance({int((p >> 16) & 0xff), int((p >> 8) & 0xff), int(p & 0xff)}, view::kBackground) > 20;
+    boxes += box && !in_box ? 1 : 0;
+    in_box = box;
+  }
+  cairo_surface_destroy(surface);
+  EXPECT_EQ(boxes, 2);
+}
+
 // The headings name the scene, cut with "..." past 40 characters (not bytes: never inside a character).
 TEST(Draw, SceneLabelIsQuotedAndCutAtWholeCharacters) {
   EXPECT_EQ(view::scene_label("classic (at rest)"), "'classic (at rest)'");
