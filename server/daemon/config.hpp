@@ -29,8 +29,8 @@ struct ServerConfig {
   double rate = 1000;
   double burst = 1000;
   std::size_t per_tick = 100;     // commands applied per tick at most, taken from the senders in turn
-  // [s] the longest a new client's commands wait for this server to find its ack and event readers (an answer
-  // written before then would reach no one); 0 = not at all.
+  // [s] the longest a new client's commands wait for this server to find its ack reader (an answer written before
+  // then would reach no one; its event reader is waited for 0.1 s more at most, Io::check); 0 = not at all.
   double reader_wait = 2.0;
   std::string record;             // LCM session log to write; empty = none
   double checkpoint_every = 1.0;  // [s of sim time] between checkpoints in the log
