@@ -8,6 +8,8 @@ namespace ladder::view {
 
 namespace {
 
+constexpr double kTick = 4;  // [px] a tick mark
+
 // Every other point dropped, the last one kept.
 void halve(std::vector<Point>& v) {
   std::vector<Point> kept;
@@ -28,24 +30,57 @@ std::string number(double v) {
   return buf;
 }
 
-// A frame, its range written at its corners, and its title.
-void frame(cairo_t* cr, const Axes& a, const std::string& title, const std::string& unit) {
-  cairo_set_source_rgb(cr, 0.45, 0.47, 0.52);
+// A frame, its axes ticked and labelled (the values left, the times below, in seconds), and its title.
+void frame(cairo_t* cr, const Axes& a, const std::string& title, const std::string& unit, bool whole) {
+  cairo_set_source_rgb(cr, kFrame.r / 255.0, kFrame.g / 255.0, kFrame.b / 255.0);
   cairo_set_line_width(cr, 1);
   cairo_rectangle(cr, a.x + 0.5, a.y + 0.5, a.w, a.h);
+  // (a ladder's hinges each ticked up to 8 of them)
+  const std::vector<double> values = nice_ticks(a.v0, a.v1, whole ? 8 : 6, whole), times = nice_ticks(a.t0, a.t1, 6);
+  for (const double v : values) {
+    const double py = std::round(a.at(a.t0, v).y) + 0.5;
+    cairo_move_to(cr, a.x - kTick, py);
+    cairo_line_to(cr, a.x, py);
+  }
+  for (const double t : times) {
+    const double px = std::round(a.at(t, a.v0).x) + 0.5;
+    cairo_move_to(cr, px, a.y + a.h);
+    cairo_line_to(cr, px, a.y + a.h + kTick);
+  }
   cairo_stroke(cr);
   cairo_set_source_rgb(cr, 0.85, 0.86, 0.9);
   cairo_select_font_face(cr, "DejaVu Sans", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
   cairo_set_font_size(cr, 11);
   text(cr, a.x, a.y - 5, title);
-  text(cr, a.x - 4 - 7 * static_cast<double>(number(a.v1).size()), a.y + 10, number(a.v1));
-  text(cr, a.x - 4 - 7 * static_cast<double>(number(a.v0).size()), a.y + a.h, number(a.v0));
-  text(cr, a.x, a.y + a.h + 13, number(a.t0) + " s");
-  text(cr, a.x + a.w - 50, a.y + a.h + 13, number(a.t1) + " s");
+  cairo_text_extents_t e;
+  for (const double v : values) {
+    const std::string s = number(v);
+    cairo_text_extents(cr, s.c_str(), &e);
+    text(cr, a.x - kTick - 3 - e.x_advance, a.at(a.t0, v).y + 4, s);
+  }
+  for (const double t : times) {
+    const std::string s = number(t);
+    cairo_text_extents(cr, s.c_str(), &e);
+    text(cr, a.at(t, a.v0).x - 0.5 * e.x_advance, a.y + a.h + kTick + 11, s);
+  }
+  text(cr, a.x + a.w + 4, a.y + a.h + kTick + 11, "s");
   text(cr, a.x + a.w - 7 * static_cast<double>(unit.size()), a.y - 5, unit);
 }
 
 }  // namespace
+
+std::vector<double> nice_ticks(double lo, double hi, int most, bool whole) {
+  std::vector<double> out;
+  if (!(std::isfinite(lo) && std::isfinite(hi) && hi > lo) || most < 1) return out;
+  const double rough = (hi - lo) / most, decade = std::pow(10, std::floor(std::log10(rough)));
+  double step = 10 * decade;
+  for (const double m : {5.0, 2.0, 1.0})
+    if ((hi - lo) / (m * decade) <= most) step = m * decade;
+  if (whole) step = std::max(step, 1.0);
+  if (!(step > 0) || (hi - lo) / step > 1e3) return out;  // (a range past what a double resolves)
+  for (double k = std::ceil(lo / step); k * step <= hi; ++k) out.push_back(k * step == 0 ? 0 : k * step);
+  return out;
+}
 
 void History::add(std::uint32_t generation, double t, double energy, const std::vector<std::uint32_t>& flips) {
   if (generation != generation_ || t < last_t_) {
@@ -93,8 +128,8 @@ void draw_plots(cairo_t* cr, const History& h, double x, double y, double w, dou
   cairo_rectangle(cr, x, y, w, h_px);
   cairo_fill(cr);
   const auto [front, energy] = plot_axes(h, x, y, w, h_px);
-  frame(cr, front, "ripple front: hinge of each flip-flop", "hinge");
-  frame(cr, energy, "energy", "J");
+  frame(cr, front, "ripple front: hinge of each flip-flop", "hinge", true);
+  frame(cr, energy, "energy", "J", false);
   // Inside the frames only.
   cairo_set_source_rgb(cr, kFlipDot.r / 255.0, kFlipDot.g / 255.0, kFlipDot.b / 255.0);
   for (const Point& f : h.flips()) {

@@ -43,10 +43,16 @@ struct Axes {
 // The two frames of plots drawn in the box (x, y, w, h): the ripple's front on top, the energy below.
 std::array<Axes, 2> plot_axes(const History& h, double x, double y, double w, double h_px);
 
+// Where an axis from lo to hi is ticked: the multiples of 1, 2 or 5 times a power of ten within it, the finest step
+// that gives at most `most` ticks (with `whole`, a step of 1 at least: hinges). None when the range is empty or not
+// finite.
+std::vector<double> nice_ticks(double lo, double hi, int most, bool whole = false);
+
 inline constexpr Rgb kFlipDot{250, 210, 60};
+inline constexpr Rgb kFrame{115, 120, 133};  // the frames and their ticks
 inline constexpr Rgb kEnergyLine{110, 200, 250};
 
-// Draws both plots in the box, on a dark panel, with their axes' ranges written.
+// Draws both plots in the box, on a dark panel, their axes ticked and labelled (nice_ticks).
 void draw_plots(cairo_t* cr, const History& h, double x, double y, double w, double h_px);
 // Both plots alone on a w x h picture, written as a PNG; "" when written, else why not.
 std::string write_plots_png(const History& h, const std::string& path, int w, int h_px);

@@ -751,6 +751,46 @@ TEST(Draw, SceneLabelIsQuotedAndCutAtWholeCharacters) {
   EXPECT_EQ(view::scene_label(""), "''");
 }
 
+// The plots' axes are ticked at 1, 2 or 5 times a power of ten, at most a few ticks each, hinges at whole numbers;
+// the time axis's tick at 1 s is drawn under the frame where the axes put 1 s.
+TEST(Plot, AxesAreTickedAtRoundValues) {
+  using V = std::vector<double>;
+  EXPECT_EQ(view::nice_ticks(0, 1, 5), (V{0, 0.2, 0.4, 0.6000000000000001, 0.8, 1}));
+  EXPECT_EQ(view::nice_ticks(193.9, 203.4, 6), (V{194, 196, 198, 200, 202}));
+  const V energy = view::nice_ticks(-0.283, -0.18, 5);  // a step of 0.02 would make 6 ticks: 0.05
+  ASSERT_EQ(energy.size(), 2u);
+  EXPECT_NEAR(energy[0], -0.25, 1e-15);
+  EXPECT_NEAR(energy[1], -0.2, 1e-15);
+  EXPECT_EQ(view::nice_ticks(0, 5.5, 8, true), (V{0, 1, 2, 3, 4, 5}));
+  EXPECT_EQ(view::nice_ticks(0, 0.6, 8, true), (V{0}));  // whole: never a step below 1
+  EXPECT_EQ(view::nice_ticks(0, 63.5, 8, true), (V{0, 10, 20, 30, 40, 50, 60}));
+  EXPECT_TRUE(view::nice_ticks(1, 1, 5).empty());
+  EXPECT_TRUE(view::nice_ticks(0, NAN, 5).empty());
+  EXPECT_TRUE(view::nice_ticks(-1e308, 1e308, 5).empty());  // (the range itself is not finite)
+
+  view::History h;
+  h.add(1, 0.0, -1.0, {0, 0, 0});
+  h.add(1, 2.0, -0.5, {0, 1, 0});
+  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, 600, 400);
+  cairo_t* cr = cairo_create(surface);
+  view::draw_plots(cr, h, 0, 0, 600, 400);
+  cairo_destroy(cr);
+  cairo_surface_flush(surface);
+  const auto axes = view::plot_axes(h, 0, 0, 600, 400);
+  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
+  const int stride = cairo_image_surface_get_stride(surface) / 4;
+  const auto at = [&](double x, double y) {
+    const std::uint32_t p = px[static_cast<int>(y) * stride + static_cast<int>(x)];
+    return Rgb{int((p >> 16) & 0xff), int((p >> 8) & 0xff), int(p & 0xff)};
+  };
+  for (const view::Axes& a : axes) {
+    const double x = std::round(a.at(1.0, a.v0).x), below = a.y + a.h + 2;
+    EXPECT_LT(distance(at(x, below), view::kFrame), 30) << "no tick at 1 s";
+    EXPECT_GT(distance(at(x - 3, below), view::kFrame), 60) << "a tick beside 1 s";
+  }
+  cairo_surface_destroy(surface);
+}
+
 TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
   view::History h;
   h.add(1, 0.0, -1.0, {0, 0, 0});
