@@ -1,6 +1,7 @@
 /* A ladderd client of your own, in C: Cyclone DDS's C API and the types idlc makes of ladder.idl, nothing of this
- * project's code (docs/server.md, "Your own client"). It reads the ladder's states, tips it, prints the flip-flops
- * that follow, then pokes a block that does not exist and prints the refusal.
+ * project's code (docs/server.md, "Your own client"). It reads the scene (what a renderer needs to draw the blocks)
+ * and the ladder's states, tips it, prints the flip-flops that follow, then pokes a block that does not exist and
+ * prints the refusal.
  *
  *   ladder-c-client [DOMAIN [SIM_ID]]     (defaults: 0, "ladder")
  *
@@ -37,6 +38,27 @@ static dds_entity_t reader(dds_entity_t participant, dds_entity_t topic, int dep
   const dds_entity_t r = make(dds_create_reader(participant, topic, q, NULL), "reader");
   dds_delete_qos(q);
   return r;
+}
+
+/* The scene of our ladder, printed: its blocks' size (a State gives each block's centre and angle only); 0 if none
+ * came within `timeout` seconds. A SceneInfo comes again after a reset, a load or a live setting's change. */
+static int print_scene(dds_entity_t scenes, double timeout) {
+  for (const double end = now_s() + timeout; now_s() < end; dds_sleepfor(DDS_MSECS(10))) {
+    void* samples[16] = {NULL};
+    dds_sample_info_t infos[16];
+    const int n = dds_take(scenes, samples, infos, 16, 16);
+    const ladder_msg_SceneInfo* latest = NULL;
+    for (int i = 0; i < n; ++i) {
+      const ladder_msg_SceneInfo* s = samples[i];
+      if (infos[i].valid_data && strcmp(s->sim_id, g_sim_id) == 0) latest = s;
+    }
+    if (latest)
+      printf("scene '%s': %" PRIu32 " blocks of %.0f x %.0f mm, top block %s, dt %g ms\n", latest->scene_name,
+             latest->blocks, latest->length * 1e3, latest->thickness * 1e3, latest->top, latest->dt * 1e3);
+    if (n > 0) dds_return_loan(scenes, samples, n);
+    if (latest) return 1;
+  }
+  return 0;
 }
 
 /* The latest State of our ladder within `timeout` seconds, printed; 0 if none came. */
@@ -118,6 +140,8 @@ int main(int argc, char** argv) {
 
   const dds_entity_t participant = make(dds_create_participant(domain, NULL, NULL), "participant");
   /* Topic names are "ladder/<Type>"; every topic is keyed by sim id. */
+  const dds_entity_t scene_t =
+      make(dds_create_topic(participant, &ladder_msg_SceneInfo_desc, "ladder/SceneInfo", NULL, NULL), "topic");
   const dds_entity_t state_t =
       make(dds_create_topic(participant, &ladder_msg_State_desc, "ladder/State", NULL, NULL), "topic");
   const dds_entity_t command_t =
@@ -129,6 +153,7 @@ int main(int argc, char** argv) {
 
   /* (8 States kept: another publisher under our sim id cannot push the server's out before it is read;
    * docs/server.md, "Why the readers keep more than one") */
+  const dds_entity_t scenes = reader(participant, scene_t, 16, 1);
   const dds_entity_t states = reader(participant, state_t, 8, 1);
   const dds_entity_t acks = reader(participant, ack_t, 64, 0);
   const dds_entity_t events = reader(participant, event_t, 64, 0);
@@ -142,7 +167,7 @@ int main(int argc, char** argv) {
    * before discovery has matched them is lost (DDS drops it, volatile). With several ladders on the domain the
    * counts are any server's; docs/network.md says how to tell ours. */
   int connected = 0;
-  if (print_state(states, 10))
+  if (print_scene(scenes, 10) && print_state(states, 10))
     for (const double end = now_s() + 10; !connected && now_s() < end; dds_sleepfor(DDS_MSECS(10))) {
       dds_publication_matched_status_t to_server;
       dds_subscription_matched_status_t from_server;

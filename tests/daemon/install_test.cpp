@@ -120,6 +120,9 @@ TEST_F(Installed, AClientOfYourOwnBuiltFromTheInstalledExampleTipsAndHearsARefus
   const Result r = from_root("CYCLONEDDS_URI=file://" + (prefix_ / "share/ladder/cyclonedds.xml").string() + " " +
                              (build / "ladder-c-client").string() + " " + domain + " " + id);
   EXPECT_EQ(r.code, 0) << r.output << server.log();
+  EXPECT_NE(r.output.find("scene 'classic (at rest)': 6 blocks of 64 x 13 mm, top block held, dt 1 ms\n"),
+            std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("state: t = "), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(" s, 6 blocks, block 0 at ("), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("tip: accepted at t = "), std::string::npos) << r.output;
