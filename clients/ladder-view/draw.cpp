@@ -724,8 +724,8 @@ Camera fit(const client::SceneInfo& info, const client::State& state, int width,
   // A ladder hanging from a held or pinned top block is framed with the room its blocks sweep as a ripple runs down
   // (a block turns about a hinge on the ladder's line: a length and a thickness to each side; below, a block's
   // diagonal a block, the longest the hinges' pitch can be), so that the frame keeps its scale before a tip, during it
-  // and after (two snapshots for a handout were framed differently: 1653 and 1436 px/m). The top block's pose moves
-  // by a thickness as the hand turns it, and the frame's centre with it.
+  // and after (two snapshots for a handout were framed differently: 1653 and 1436 px/m). Its centre may still move,
+  // by up to a thickness (9 mm of the classic ladder's 13 in View.PngBeforeAndAfterATip...: not traced further).
   if ((info.top == "held" || info.top == "pinned") && std::isfinite(info.length) && std::isfinite(info.thickness)) {
     const client::Pose& top = state.blocks[0];
     const double side = info.length + info.thickness, half_depth = 0.5 * depth_of(info);

@@ -912,7 +912,7 @@ TEST_F(View, PngBeforeAndAfterATipShowsEveryBlockAndItsTapesWhereTheStateHasThem
   EXPECT_TRUE(is_hand(img1.at(cam->project(view::hand_centre(info, after.blocks[0])))));
   // Framed by the viewer itself, the ladder after the tip is framed at the scale it was before (a handout's two
   // snapshots were not, 1653 and 1436 px/m: the frame followed the blocks' bounds, which a tip changes), its centre
-  // within a block's thickness (the top block's pose moves by that much as the hand turns it).
+  // within a block's thickness (9 mm here).
   const Result c = viewer("--png " + out_ + "-after-framed.png --size 500x700 --at " + at);
   ASSERT_EQ(c.code, 0) << c.output;
   const auto framed = camera_in(c.output, 500, 700);
