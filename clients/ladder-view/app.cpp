@@ -1,5 +1,7 @@
 #include "app.hpp"
 
+#include "ladder/printable.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -98,12 +100,10 @@ std::string camera_text(const Camera& c) {
 }
 
 std::string scene_label(const std::string& name, std::size_t max_chars) {
-  std::size_t end = name.size(), chars = 0;
-  for (std::size_t i = 0; i < name.size() && end == name.size(); ++i)
-    if ((static_cast<unsigned char>(name[i]) & 0xC0) != 0x80 && chars++ == max_chars) end = i;  // a character begins
+  const std::string_view head = first_characters(name, max_chars);
   std::string out(1, '\'');
-  out.append(name, 0, end);
-  out.append(end < name.size() ? "...'" : "'");
+  out.append(head);
+  out.append(head.size() < name.size() ? "...'" : "'");
   return out;
 }
 
@@ -148,9 +148,7 @@ std::vector<std::string> wrap(const std::string& text, std::size_t columns) {
     at = space + 1;
     if (!line.empty() && count(line) + 1 + count(word) > columns) out.push_back(std::exchange(line, {}));
     while (count(word) > columns) {  // a word longer than a line (a path): cut into lines of its own
-      std::size_t cut = 0;
-      for (std::size_t c = 0; c < columns; ++c)
-        for (++cut; cut < word.size() && !starts(word[cut]);) ++cut;
+      const std::size_t cut = first_characters(word, columns).size();
       if (!line.empty()) out.push_back(std::exchange(line, {}));
       out.push_back(word.substr(0, cut));
       word.erase(0, cut);

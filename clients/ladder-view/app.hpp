@@ -74,9 +74,8 @@ class Outbox {
   // Sends `c` now; `what` names it in the answer ("tip", "poke block 3"). With no server: an answer at once.
   void send(const ladder_msg_Command& c, const std::string& what);
   // The answers that came (or timed out) since the last call, e.g. "tip: accepted at t = 1.234 s"; the latest also
-  // stays in last(), and in recent() for kRecent after it came.
+  // stays in recent() for kRecent after it came.
   std::vector<std::string> take();
-  const std::string& last() const { return last_; }
   // The latest answer while it is news: a picture that shows it for ever showed "tip: accepted" after a `load` from
   // elsewhere, a reset or a server restart, as if it were the news of the ladder on screen.
   static constexpr std::chrono::seconds kRecent{10};

@@ -1,6 +1,7 @@
 #include "ascii.hpp"
 
 #include "app.hpp"
+#include "ladder/printable.hpp"
 #include "stop_signals.hpp"
 
 #include <sys/ioctl.h>
@@ -200,14 +201,6 @@ std::vector<std::string> hinge_panel(const client::State& s, int rows) {
   return out;
 }
 
-// The first `cols` characters of `text` (UTF-8).
-std::string first_columns(const std::string& text, int cols) {
-  int chars = 0;
-  for (std::size_t i = 0; i < text.size(); ++i)
-    if ((static_cast<unsigned char>(text[i]) & 0xC0) != 0x80 && chars++ == cols) return text.substr(0, i);
-  return text;
-}
-
 constexpr int kPanel = 22;  // [characters] the hinge panel's width, when the terminal is wide enough
 
 // What a key does: q quits; t, space, s and r send a command.
@@ -236,7 +229,8 @@ std::string frame_text(const Options& o, const Feed& feed, const client::State& 
   std::string frame = tty ? "\x1b[H" : "";
   // On a terminal a line longer than it is wide would wrap and push the picture down: cut there, at a whole
   // character (one column each: the scene's name may be any printable text).
-  for (const std::string& h : head) frame += tty ? first_columns(h, cols) + "\x1b[K\n" : h + "\n";
+  for (const std::string& h : head)
+    frame += tty ? std::string(first_characters(h, static_cast<std::size_t>(cols))) + "\x1b[K\n" : h + "\n";
   std::size_t at = 0;
   for (int r = 0; r < rows; ++r) {
     const std::size_t nl = art.find('\n', at);

@@ -255,6 +255,9 @@ class Viewer {
                     link_->feed.quiet());
       hud.banner = buf;
     }
+    // The last answer while it is news, wrapped (a refusal's reason may be long) to the overlay's width.
+    std::vector<std::string> answer = wrap(link_->outbox.recent(), kOverlayColumns);
+    std::erase(answer, std::string());
     if (overlay_) {
       if (s) hud.lines = stats_lines(*link_->feed.info(), link_->feed.stats());
       char buf[128];
@@ -262,15 +265,11 @@ class Viewer {
       hud.lines.emplace_back(buf);
       if (follow_) hud.lines.emplace_back("following the ripple (f: stop)");
       if (hover_ >= 0) hud.lines.push_back("block " + std::to_string(hover_) + " under the cursor");
-      // (An answer may be long, a refusal's reason: wrapped, so that the overlay keeps its width.)
-      for (const std::string& l : wrap(link_->outbox.recent(), kOverlayColumns))
-        if (!l.empty()) hud.lines.push_back(l);
+      hud.lines.insert(hud.lines.end(), answer.begin(), answer.end());
       hud.lines.insert(hud.lines.end(), kHelp.begin(), kHelp.end());
     } else {
-      // The last answer while it is news, and the hint always.
-      for (const std::string& l : wrap(link_->outbox.recent(), kOverlayColumns))
-        if (!l.empty()) hud.lines.push_back(l);
-      hud.lines.emplace_back("o: stats, keys and colours");
+      hud.lines = std::move(answer);
+      hud.lines.emplace_back("o: stats, keys and colours");  // the hint, always
     }
     // The banner goes over everything, the plots too: drawn last.
     const std::string banner = std::exchange(hud.banner, {});

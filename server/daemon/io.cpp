@@ -179,7 +179,7 @@ void Io::check(Sender& s, Clock::time_point now) {
   s.next_check = now + std::chrono::milliseconds(2);  // the lookups cost a copy per matched reader
   const bool ack = !s.participant || ack_w_.matched_in(*s.participant);
   if (ack && !s.ack_reader_found) s.ack_reader_found = now;
-  const bool events = !s.participant || event_w_.matched_in(*s.participant);
+  const bool events = ack && (!s.participant || event_w_.matched_in(*s.participant));  // (looked up once ack is)
   s.ready = ack && (events || seconds(now - *s.ack_reader_found) >= std::min(kEventGrace, sh_.config.reader_wait));
   const double waited = seconds(now - s.first_seen);
   if (s.ready) {

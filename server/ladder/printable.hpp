@@ -82,6 +82,15 @@ inline std::string printable_lines(std::string_view text) {
   return out;
 }
 
+// The first `n` characters of UTF-8 `text` (all of it when it has no more): a heading or a terminal line cut at a
+// whole character, never inside one.
+inline std::string_view first_characters(std::string_view text, std::size_t n) {
+  std::size_t chars = 0;
+  for (std::size_t i = 0; i < text.size(); ++i)
+    if ((static_cast<unsigned char>(text[i]) & 0xc0) != 0x80 && chars++ == n) return text.substr(0, i);
+  return text;
+}
+
 // `text` in at most `max_bytes` bytes: as it is when it fits, else cut at the start of a character and ended with
 // "..." (with room for no character, as much of "..." as fits). A cut inside a UTF-8 character left bytes that every
 // reader showed as \xNN. The DDS messages' bounded text fields (transport::copy_text) and the session log's texts
