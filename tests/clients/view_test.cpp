@@ -219,16 +219,44 @@ client::State zigzag(int n) {
 }
 
 Image render(const Camera& cam, const client::SceneInfo& info, const client::State& s, const std::string& name,
-             int* drawn = nullptr) {
+             int* drawn = nullptr, const view::Hud& hud = {}) {
   cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, cam.width, cam.height);
   cairo_t* cr = cairo_create(surface);
-  const int n = view::draw(cr, cam, info, s, view::Hud{});
+  const int n = view::draw(cr, cam, info, s, hud);
   if (drawn) *drawn = n;
   cairo_destroy(cr);
   const std::string path = kBin + "/tests/" + name + ".png";
   cairo_surface_write_to_png(surface, path.c_str());
   cairo_surface_destroy(surface);
   return read_png(path);
+}
+
+// The blocks with their numbers only (no heading, scale bar or marks): what the labels' tests read.
+view::Hud numbers_only() {
+  view::Hud hud;
+  hud.show = hud.scale_bar = hud.marks = false;
+  hud.numbers = true;
+  return hud;
+}
+
+// The ladder's right edge on screen [px].
+double right_edge(const Camera& cam, const client::SceneInfo& info, const client::State& s) {
+  double right = -1e300;
+  for (const client::Pose& p : s.blocks)
+    for (const Point& c : view::outline(info, p)) right = std::max(right, cam.to_screen(c).x);
+  return right;
+}
+
+// How many runs of pixels other than the background (labels' boxes) the n pixels from `from` by `step` cross.
+int boxes_along(const Image& img, Point from, Point step, int n) {
+  int boxes = 0;
+  bool in_box = false;
+  for (int k = 0; k < n; ++k) {
+    const bool box = distance(img.at({from.x + k * step.x, from.y + k * step.y}), view::kBackground) > 20;
+    boxes += box && !in_box ? 1 : 0;
+    in_box = box;
+  }
+  return boxes;
 }
 
 // The 3-D view of a known state: each block's wide face where the state puts it, the tapes each face carries (two
@@ -676,29 +704,9 @@ TEST(Draw, BlockNumbersOfASmallLadderDoNotOverlap) {
   cam.height = 1000;
   cam.scale = 14 / info.length;  // 14 px a block
   cam.cy = s.blocks[32].y;
-  view::Hud hud;
-  hud.show = hud.scale_bar = hud.marks = false;
-  hud.numbers = true;
-  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, cam.width, cam.height);
-  cairo_t* cr = cairo_create(surface);
-  view::draw(cr, cam, info, s, hud);
-  cairo_destroy(cr);
-  cairo_surface_flush(surface);
-  double right = -1e300;  // the ladder's right edge on screen
-  for (const client::Pose& p : s.blocks)
-    for (const Point& c : view::outline(info, p)) right = std::max(right, cam.to_screen(c).x);
-  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
-  const int stride = cairo_image_surface_get_stride(surface) / 4, x = static_cast<int>(right) + 6;
-  int boxes = 0;
-  bool in_box = false;
-  for (int y = 0; y < cam.height; ++y) {
-    const std::uint32_t p = px[y * stride + x];
-    const bool box = distance({int((p >> 16) & 0xff), int((p >> 8) & 0xff), int(p & 0xff)}, view::kBackground) > 20;
-    boxes += box && !in_box ? 1 : 0;
-    in_box = box;
-  }
-  cairo_surface_destroy(surface);
-  EXPECT_EQ(boxes, 32);  // blocks 0, 2, ..., 62, each its own box
+  const Image img = render(cam, info, s, "Draw.BlockNumbersOfASmallLadder", nullptr, numbers_only());
+  // Down the column just right of the ladder: blocks 0, 2, ..., 62, each its own box.
+  EXPECT_EQ(boxes_along(img, {std::floor(right_edge(cam, info, s)) + 6, 0}, {0, 1}, cam.height), 32);
 }
 
 // A folded pair's two blocks lie side by side at one height: their numbers were drawn on top of each other. The
@@ -712,31 +720,12 @@ TEST(Draw, TheNumbersOfAFoldedPairDoNotOverlap) {
   cam.height = 300;
   cam.scale = 500;  // the pair's right edges 6.5 px apart: their labels' boxes (15 px wide) overlapped
   cam.cy = s.blocks[1].y;
-  view::Hud hud;
-  hud.show = hud.scale_bar = hud.marks = false;
-  hud.numbers = true;
-  cairo_surface_t* surface = cairo_image_surface_create(CAIRO_FORMAT_RGB24, cam.width, cam.height);
-  cairo_t* cr = cairo_create(surface);
-  view::draw(cr, cam, info, s, hud);
-  cairo_destroy(cr);
-  cairo_surface_flush(surface);
-  double right = -1e300;
-  for (const client::Pose& p : s.blocks)
-    for (const Point& c : view::outline(info, p)) right = std::max(right, cam.to_screen(c).x);
-  const auto* px = reinterpret_cast<const std::uint32_t*>(cairo_image_surface_get_data(surface));
-  const int stride = cairo_image_surface_get_stride(surface) / 4;
-  // (the row of the boxes' top margin, above the digits, whose antialiased edges come near the background)
-  const int y = static_cast<int>(cam.to_screen({s.blocks[2].x, s.blocks[2].y}).y) - 9;
-  int boxes = 0;
-  bool in_box = false;
-  for (int x = static_cast<int>(right) + 2; x < cam.width; ++x) {
-    const std::uint32_t p = px[y * stride + x];
-    const bool box = distance({int((p >> 16) & 0xff), int((p >> 8) & 0xff), int(p & 0xff)}, view::kBackground) > 20;
-    boxes += box && !in_box ? 1 : 0;
-    in_box = box;
-  }
-  cairo_surface_destroy(surface);
-  EXPECT_EQ(boxes, 2);
+  const Image img = render(cam, info, s, "Draw.TheNumbersOfAFoldedPair", nullptr, numbers_only());
+  // Along the row of the boxes' top margin (above the digits, whose antialiased edges come near the background),
+  // from just right of the ladder.
+  const double x = std::floor(right_edge(cam, info, s)) + 2;
+  const double y = std::floor(cam.to_screen({s.blocks[2].x, s.blocks[2].y}).y) - 9;
+  EXPECT_EQ(boxes_along(img, {x, y}, {1, 0}, cam.width - static_cast<int>(x)), 2);
 }
 
 // The headings name the scene, cut with "..." past 40 characters (not bytes: never inside a character).
