@@ -2,7 +2,7 @@
 // the terminal. Exit codes: 0 done, 1 failed (no display, cannot write), 2 bad usage, 3 no server.
 #include "app.hpp"
 #include "cli_checks.hpp"
-#include "cli_error.hpp"
+#include "ladder/cli_error.hpp"
 #include "transport/dds.hpp"
 #include "transport/domain_option.hpp"
 #include "transport/security.hpp"
@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
   std::string size, view;
   CLI::App app{"ladder-view: draws a running ladderd's ladder in a window, a PNG file or the terminal"};
   app.set_version_flag("--version", std::string("ladder-view ") + ladder::kVersion);
-  app.add_option("--domain", o.domain, "DDS domain id of the server (default 0)")
+  app.add_option("--domain", o.domain, "DDS domain id of the server, 0-231 (default 0)")
       ->check(ladder::transport::domain_check());
   app.add_option("--sim-id", o.sim_id, "the server's sim id (default 'ladder')")->check(ladder::client::sim_id_check());
   app.add_option("--timeout", o.timeout, "seconds to wait for the server (--png, --ascii; default 10)")
@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
     if (!error.empty()) throw CLI::ValidationError(size.empty() || !error.starts_with("'" + size) ? "--view" : "--size",
                                                    error);
   } catch (const CLI::ParseError& e) {
-    return ladder::client::report_parse_error(app, e, "ladder-view") == 0 ? kOk : kUsage;
+    return ladder::report_parse_error(app, e, "ladder-view") == 0 ? kOk : kUsage;
   }
   // Checked before DDS starts; every participant this process makes then uses it (the viewer only reads).
   std::optional<ladder::transport::Identity> identity;

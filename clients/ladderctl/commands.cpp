@@ -4,7 +4,7 @@
 #include "transport/version.hpp"
 
 #include "cli_checks.hpp"
-#include "cli_error.hpp"
+#include "ladder/cli_error.hpp"
 #include "list.hpp"
 #include "replay.hpp"
 #include "scene/scene.hpp"
@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -147,10 +148,13 @@ class Json {
     out_ += (out_.size() > 1 ? ",\"" : "\"") + std::string(key) + "\":" + value;
     return *this;
   }
-  Json& field(const char* key, double v, const char* format = "%.9g") {
+  // Without a format, the shortest text that reads back as the same double (a sim time to the last bit).
+  Json& field(const char* key, double v, const char* format = nullptr) {
+    if (!std::isfinite(v)) return raw(key, "null");
     char buf[64];
+    if (format == nullptr) return raw(key, std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr));
     std::snprintf(buf, sizeof buf, format, v);
-    return raw(key, std::isfinite(v) ? buf : "null");
+    return raw(key, buf);
   }
   template <class I, std::enable_if_t<std::is_integral_v<I>, int> = 0>
   Json& field(const char* key, I v) {
@@ -188,6 +192,19 @@ void print_event(const client::Event& e, bool json) {
   } else {
     std::printf("t = %9s s  %-15s hinge %-3d energy removed %.3g J%s%s\n", client::fixed(e.t, 4).c_str(),
                 e.kind.c_str(), e.hinge, e.energy_removed, e.detail.empty() ? "" : "  ", e.detail.c_str());
+  }
+}
+
+// A new generation of the scene (a reset or a load), in the event stream: in JSON, an object whose kind is "scene".
+void print_scene_start(const client::SceneInfo& info, bool json) {
+  if (json) {
+    Json j;
+    j.field("kind", std::string("scene")).field("generation", info.generation);
+    j.field("scene", info.scene_name).field("blocks", info.blocks);
+    std::printf("%s\n", j.done().c_str());
+  } else {
+    std::printf("--- the scene starts again (generation %u, a reset or a load): '%s', %u blocks; t counts from 0 ---\n",
+                info.generation, info.scene_name.c_str(), info.blocks);
   }
 }
 
@@ -305,9 +322,16 @@ int watch(Client& client, const Connection& c, const WatchOptions& w) {
   std::uint64_t stats_seen = client.stats_received(), pending = 0;
   int stats_before_count = 0;
   bool counted = false;  // last_event holds a number: an event's, or a Stats count
+  // The scene's generation: a reset or a load starts a new one, whose clock starts again at 0. Marked with a line of
+  // its own (the events do not carry the generation; the marker comes before the events taken in the same poll).
+  std::optional<std::uint32_t> generation;
   while (!g_interrupted) {
     if (what == "events") {
       client.wait_state([](const client::State&) { return false; }, Millis(100));
+      if (const auto& info = client.scene_info()) {
+        if (generation && *generation != info->generation) print_scene_start(*info, json);
+        generation = info->generation;
+      }
       for (const client::Event& e : client.take_events()) {
         // A gap in the numbers: events this client's reader lost (it keeps the last 64, and a client stopped with
         // Ctrl-Z or too slow to read lets the rest go). Said on standard error, so that --json's lines stay clean;
@@ -372,11 +396,12 @@ int status(Client& client, const Connection& c) {
   if (stats) {
     std::printf("measured over the last %.1f s: real-time factor %.3f, step p50 %.1f us p99 %.1f us max %.1f us,\n"
                 "  tick lateness p50 %.0f us p99 %.0f us max %.0f us\n"
-                "since the start: %llu ticks missed (started more than a period late); since the scene was loaded: "
+                "since the start: %llu tick%s missed (started more than a period late); since the scene was loaded: "
                 "largest hinge error %.2g m\n",
                 stats->window, stats->real_time_factor, stats->step_p50_us, stats->step_p99_us, stats->step_max_us,
                 stats->late_p50_us, stats->late_p99_us, stats->late_max_us,
-                static_cast<unsigned long long>(stats->missed_deadlines), stats->max_hinge_error);
+                static_cast<unsigned long long>(stats->missed_deadlines), stats->missed_deadlines == 1 ? "" : "s",
+                stats->max_hinge_error);
     std::printf("commands: %llu received, %llu accepted, %llu refused, %llu rate-limited, %llu unanswered (a "
                 "client over its rate), %llu repeated ids, %llu undecodable; %llu failed writes\n",
                 static_cast<unsigned long long>(stats->commands_received),
@@ -416,7 +441,7 @@ struct Values {
 };
 
 void add_connection(CLI::App& app, Connection& c) {
-  app.add_option("--domain", c.domain, "DDS domain id of the server (default 0)")
+  app.add_option("--domain", c.domain, "DDS domain id of the server, 0-231 (default 0)")
       ->check(ladder::transport::domain_check());
   app.add_option("--sim-id", c.sim_id, "the server's sim id (default 'ladder')")->check(ladder::client::sim_id_check());
   // (At most a million seconds: 1e10 overflowed the clock's nanoseconds and timed out at once.)
@@ -624,7 +649,7 @@ std::optional<std::size_t> command_at(const std::vector<std::string>& args) {
 }  // namespace
 
 std::string unknown_command(const std::string& word) {
-  const std::string best = client::nearest(word, command_names());
+  const std::string best = nearest(word, command_names());
   std::string out = "unknown command '" + word + "'";
   if (!best.empty()) out += "; did you mean '" + best + "'?";
   out += "\ncommands:";
@@ -670,7 +695,7 @@ int run(const std::vector<std::string>& args, Connection& conn, std::unique_ptr<
   try {
     app.parse(reversed);
   } catch (const CLI::ParseError& e) {
-    return client::report_parse_error(app, e, interactive ? "" : "ladderctl") == 0 ? kAccepted : kUsage;
+    return report_parse_error(app, e, interactive ? "" : "ladderctl") == 0 ? kAccepted : kUsage;
   }
   if (conn.domain != before.domain || conn.sim_id != before.sim_id || conn.security != before.security)
     client.reset();

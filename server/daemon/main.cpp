@@ -5,7 +5,7 @@
 #include "daemon/offline.hpp"
 #include "daemon/server.hpp"
 #include "daemon/startup.hpp"
-#include "ladder/spelling.hpp"
+#include "ladder/cli_error.hpp"
 #include "transport/default_config.hpp"
 #include "transport/dds.hpp"
 #include "transport/domain_option.hpp"
@@ -42,7 +42,7 @@ CLI::Validator a_number(bool whole) {
         }
         return read && !text.empty() ? "" : "'" + text + "' is not a " + (whole ? "whole number" : "number");
       },
-      whole ? "INTEGER" : "NUMBER");
+      "");  // (no words in --help: the type, INT or FLOAT, says it)
 }
 
 }  // namespace
@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--scene", o.scene,
                  "scene file (TOML), or the name of one in the scenes folder (e.g. double-ripple); default: the "
-                 "built-in classic toy at rest (required with --offline)");
+                 "built-in classic toy at rest (required with --offline, but for --resimulate)");
   app.add_option("--set", o.overrides, "override a scene key, KEY=VALUE (e.g. sim.dt=0.0005); repeatable");
   auto* domain = app.add_option("--domain", c.server.domain, "DDS domain id (0-231)")
                      ->check(transport::domain_check())
@@ -81,12 +81,12 @@ int main(int argc, char** argv) {
   auto* realtime = app.add_option("--realtime-priority", c.server.realtime_priority,
                                   "run the physics thread at SCHED_FIFO priority 1-99 (needs CAP_SYS_NICE); 0 = off")
                        ->check(a_number(true))
-                       ->check(CLI::Range(0, 99));
+                       ->check(CLI::Range(0, 99).description(""));
   auto* spin = app.add_option("--spin-us", c.server.spin_us,
                               "busy-wait the last US microseconds before each tick instead of sleeping: ticks start on "
                               "time, for that much CPU; 0 = off")
                    ->check(a_number(true));
-  auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off");
+  auto* level = app.add_option("--log-level", c.log_level, "trace, debug, info, warn, error or off (default info)");
   auto* log_file = app.add_option("--log-file", c.log_file, "also log to FILE");
   auto* security = app.add_option("--security", c.security,
                                   "DDS Security: this server's identity folder DIR/NAME of scripts/make-pki "
@@ -102,24 +102,20 @@ int main(int argc, char** argv) {
   app.add_option("--resimulate", resimulate,
                  "with --offline: re-run a session log FILE and compare every recorded state bit for bit")
       ->check(CLI::ExistingFile);
-  app.add_option("--duration", o.duration, "simulated time to run [s] (offline)")->check(a_number(false));
+  auto* duration =
+      app.add_option("--duration", o.duration, "simulated time to run [s] (offline)")->check(a_number(false));
   app.add_option("--events", o.events, "write events as JSON lines to FILE (offline)");
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");
   app.add_flag("--quiet", quiet, "no progress lines (offline)");
   app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
   app.set_version_flag("--version", std::string("ladderd ") + kVersion);
-  // CLI11's own words, with what it quotes of the command line made printable (a path holding an escape sequence).
-  app.failure_message([](const CLI::App* a, const CLI::Error& e) {
-    const std::string once = repeated_option(e.what());
-    return printable_lines(once == e.what() ? CLI::FailureMessage::simple(a, e)
-                                            : once + "\nRun with --help for more information.\n");
-  });
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // --help and --version exit 0; every bad command line exits 2, the code scripts get for any bad input.
-    return app.exit(e) == 0 ? 0 : 2;
+    // --help and --version exit 0; every bad command line exits 2, the code scripts get for any bad input. An
+    // unknown option is named with the nearest one; what is quoted of the command line is made printable.
+    return report_parse_error(app, e, "ladderd");
   }
   if (keys) {
     std::cout << scene::keys_help();
@@ -152,8 +148,9 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     // A value checked under its configuration key also names the option it came from, when it came from one.
     std::string why = e.what(), given;
-    for (const auto& [key, option] : {std::pair{"server.physics_rate", rate}, {"server.publish_rate", publish},
-                                      {"server.real_time_factor", rtf}, {"server.spin_us", spin}})
+    for (const auto& [key, option] :
+         {std::pair{"server.physics_rate", rate}, {"server.publish_rate", publish}, {"server.real_time_factor", rtf},
+          {"server.spin_us", spin}, {"server.sim_id", sim_id}, {"log.level", level}})
       if (option->count() && why.find(key) != std::string::npos)
         given += (given.empty() ? "" : " and ") + option->get_name() + " " + option->as<std::string>();
     if (!given.empty()) why += " (given as " + given + ")";
@@ -183,9 +180,9 @@ int main(int argc, char** argv) {
                                         " is for the live server, not --offline (an offline run writes --events, "
                                         "--trajectory and --summary)");
       }
-    if (c.scene.empty() || o.duration <= 0) {
+    if (c.scene.empty() || !duration->count()) {
       return daemon::exit_with(2, "--offline needs --scene FILE and --duration S (seconds > 0); see --help");
-    }
+    }  // (a --duration of 0 or less is refused by run_offline, with the figure given)
     o.scene = c.scene;
     o.progress = !quiet;
     return daemon::run_offline(o);

@@ -6,9 +6,11 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -32,8 +34,13 @@ std::string json_text(const json& v, int indent = -1) {
 // An output file opened up front, so that a bad path is refused before any simulation is run.
 std::unique_ptr<std::ofstream> open_output(const std::string& path, const char* what) {
   if (path.empty()) return nullptr;
+  errno = 0;
   auto out = std::make_unique<std::ofstream>(path, std::ios::out | std::ios::trunc);
-  if (!*out) throw std::invalid_argument(std::string("cannot write the ") + what + " file '" + path + "'");
+  if (!*out) {
+    const int why = errno;  // (set by the open(2) under the stream, which says nothing itself)
+    throw std::invalid_argument(std::string("cannot write the ") + what + " file '" + path + "'" +
+                                (why != 0 ? std::string(": ") + std::strerror(why) : std::string()));
+  }
   out->precision(17);
   return out;
 }

@@ -367,7 +367,8 @@ void Ladder::emit(EventKind kind, int k, double energy, std::string detail) {
   if (kind == EventKind::FlipFlop) {
     const auto& r = since_flip_.removed;
     const auto at = [&](EventKind e) { return r[static_cast<size_t>(e)]; };
-    detail = "lost " + format_number(since_flip_.total()) + " J since the last flip-flop: landing " +
+    detail = "lost " + format_number(since_flip_.total()) + " J since " +
+             (flip_flops_ == 0 ? "the start" : "the last flip-flop") + ": landing " +
              format_number(energy) + " J, stops " + format_number(at(EventKind::Impact) + at(EventKind::Lock)) +
              " J, damping and integrator " + format_number(since_flip_.motion) + " J";
     if (at(EventKind::Join) != 0) detail += ", joins " + format_number(at(EventKind::Join)) + " J";
@@ -690,9 +691,12 @@ void Ladder::restructure(int k) {
       const double moment = moments_[static_cast<size_t>(k)], other = other_moments_[static_cast<size_t>(k)];
       if (moment >= -spec_.unlock_threshold && other >= -spec_.unlock_threshold) {
         hinges_[k].status = HingeStatus::Locked;
-        emit(EventKind::Lock, k, before - blocks_kinetic(), "face to face, pressed with " + format_number(moment) +
-                                                                " N m at the hinge and " + format_number(other) +
-                                                                " N m at the other end");
+        emit(EventKind::Lock, k, before - blocks_kinetic(),
+             moment >= 0 && other >= 0
+                 ? "face to face, pressed with " + format_number(moment) + " N m at the hinge and " +
+                       format_number(other) + " N m at the other end"
+                 : "face to face, " + lock_moment(moment) + " at the hinge and " + lock_moment(other) +
+                       " at the other end");
         return;
       }
       if (moment < other) {  // pulled open harder at the hinge it has: it opens there, and the hinge stays
@@ -732,6 +736,14 @@ void Ladder::move_hinge(int k) {
 // the pair by themselves and the weld is undone at once, so that the meeting is one impact. (Welding at every meeting
 // and letting go after the next step, as the model did before, made most meetings a lock and an unlock one step
 // apart.)
+// A lock's contact moment in words: "pressed with M N m", or, for a pull the threshold lets the stop hold, "pulled
+// open with only M N m (within ladder.unlock_threshold, T N m)" rather than a negative press.
+std::string Ladder::lock_moment(double moment) const {
+  if (moment >= 0) return "pressed with " + format_number(moment) + " N m";
+  return "pulled open with only " + format_number(-moment) + " N m (within ladder.unlock_threshold, " +
+         format_number(spec_.unlock_threshold) + " N m)";
+}
+
 void Ladder::meet_stop(int k) {
   const int c = hinges_[k].corner;
   const double before = blocks_kinetic();
@@ -743,7 +755,7 @@ void Ladder::meet_stop(int k) {
   const double moment = moments_[static_cast<size_t>(k)];
   if (moment >= -spec_.unlock_threshold) {
     hinges_[k].status = HingeStatus::Locked;
-    emit(EventKind::Lock, k, before - blocks_kinetic(), "pressed with " + format_number(moment) + " N m");
+    emit(EventKind::Lock, k, before - blocks_kinetic(), lock_moment(moment));
     return;
   }
   world_.separate(particle(k - 1, c), particle(k, c));

@@ -219,6 +219,7 @@ class Ladder {
   double locate(const core::Snapshot& start, const std::vector<double>& s0, double h, int& hinge);
   void restructure(int k);
   void meet_stop(int k);
+  std::string lock_moment(double moment) const;
   void released(int k);
   bool held_again(int k, double before, const char* detail);
   bool take_back_release(int k);

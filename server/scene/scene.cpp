@@ -480,7 +480,10 @@ Origins apply_overrides(toml::table& root, const std::vector<std::string>& overr
     if (eq == std::string::npos) fail("expected KEY=VALUE, e.g. sim.dt=0.0005");
     const std::string_view key = trim(std::string_view(text).substr(0, eq));
     const KeyDef* def = find_key(key);
-    if (!def || table_of(key) == "timeline") fail(unknown("key", key, settable_key_names()));
+    if (def && table_of(key) == "timeline")
+      fail(std::string(key) + ": the timeline is a list of [[timeline]] entries, given in the scene file only, not "
+           "with --set; edit a copy of the scene");
+    if (!def) fail(unknown("key", key, settable_key_names()));
     const std::string table(table_of(key));
     if (!root.contains(table)) root.insert_or_assign(table, toml::table{});
     try {
@@ -987,10 +990,15 @@ std::string keys_help() {
     name_width = std::max(name_width, k.name.size());
     type_width = std::max(type_width, type_name(k).size());
   }
-  std::string out;
+  std::string out = "Scene keys, each usable with --set KEY=VALUE:\n";
+  bool timeline = false;
   for (const KeyDef& k : kKeys) {
+    if (!timeline && table_of(k.name) == "timeline") {
+      timeline = true;
+      out += "\nThe fields of a [[timeline]] entry, in a scene file only (not with --set):\n";
+    }
     const std::string range = k.range_text.empty() ? describe(k.range) : std::string(k.range_text);
-    out += pad(k.name, name_width) + "  " + pad(type_name(k), type_width) + "  " + std::string(k.help);
+    out += "  " + pad(k.name, name_width) + "  " + pad(type_name(k), type_width) + "  " + std::string(k.help);
     if (!range.empty()) out += " (" + range + ")";
     out += "\n";
   }

@@ -20,6 +20,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 
 namespace ladder::test {
 namespace {
@@ -259,6 +260,65 @@ Accounting account_events(const std::string& log) {
     }
   }
   return a;
+}
+
+// A reset starts the scene's clock again at 0; watch events marks it with a line of its own between the events of the
+// two generations (text: "--- the scene starts again (generation G, ...) ---"; --json: {"kind":"scene",
+// "generation":G,...}), so that a time that jumps back is not taken for a broken clock.
+TEST_F(Ladderctl, WatchEventsMarksAReset) {
+  ASSERT_EQ(ctl("pause").code, 0);
+  const std::string base = std::string(LADDER_BINARY_DIR) + "/tests/ctl-reset-" + std::to_string(getpid());
+  Process json_watcher({kLadderctl, "watch", "events", "--json", "--domain", std::to_string(domain_), "--sim-id",
+                        sim_id_, "--timeout", "15"},
+                       base + ".json");
+  Process text_watcher({kLadderctl, "watch", "events", "--domain", std::to_string(domain_), "--sim-id", sim_id_,
+                        "--timeout", "15"},
+                       base + ".txt");
+  client::Client c(domain_, sim_id_, "resetter");
+  ASSERT_TRUE(c.wait_for_server(std::chrono::milliseconds(15000)));
+  const auto printed_by_both = [&](const std::string& json_words, const std::string& text_words) {
+    const auto deadline = Clock::now() + std::chrono::seconds(20);
+    while ((json_watcher.log().find(json_words) == std::string::npos ||
+            text_watcher.log().find(text_words) == std::string::npos) &&
+           Clock::now() < deadline) {
+      ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+      ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+  };
+  printed_by_both("\"kind\":\"join\"", " join ");
+  const std::uint32_t before = c.scene_info()->generation;
+  ASSERT_TRUE(c.call(client::cmd::reset()).accepted);
+  ASSERT_TRUE(c.wait_scene_info(std::chrono::milliseconds(5000),
+                                [&](const client::SceneInfo& i) { return i.generation == before + 1; }));
+  const std::string marker_json = "{\"kind\":\"scene\",\"generation\":" + std::to_string(before + 1) + ",";
+  const std::string marker_text = "--- the scene starts again (generation " + std::to_string(before + 1) + ", a reset "
+                                  "or a load): '" + c.scene_info()->scene_name + "', 6 blocks; t counts from 0 ---\n";
+  const auto after = [](const std::string& log, const std::string& marker, const std::string& words) {
+    const size_t at = log.find(marker);
+    return at != std::string::npos && log.find(words, at) != std::string::npos;
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (!(after(json_watcher.log(), marker_json, "\"kind\":\"join\"") &&
+           after(text_watcher.log(), marker_text, " join ")) &&
+         Clock::now() < deadline) {
+    ASSERT_TRUE(c.call(client::cmd::break_hinge(3)).accepted);
+    ASSERT_TRUE(c.call(client::cmd::join_hinge(3)).accepted);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  json_watcher.signal(SIGINT);
+  text_watcher.signal(SIGINT);
+  ASSERT_TRUE(json_watcher.wait_exit(std::chrono::seconds(10)).has_value());
+  ASSERT_TRUE(text_watcher.wait_exit(std::chrono::seconds(10)).has_value());
+  const std::string json_join = "\"kind\":\"join\"", text_join = " join ";
+  for (const auto& [log, marker, join] : {std::tuple{json_watcher.log(), marker_json, json_join},
+                                          std::tuple{text_watcher.log(), marker_text, text_join}}) {
+    const size_t at = log.find(marker);
+    ASSERT_NE(at, std::string::npos) << log;
+    EXPECT_EQ(log.find(marker, at + 1), std::string::npos) << "one reset, one marker\n" << log;
+    EXPECT_LT(log.find(join), at) << "events of the first generation come before it\n" << log;
+    EXPECT_NE(log.find(join, at), std::string::npos) << "and of the second after it\n" << log;
+  }
 }
 
 // watch events says which events it missed: a watcher stopped (Ctrl-Z) while the paused server breaks and joins a

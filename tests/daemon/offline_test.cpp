@@ -48,7 +48,8 @@ class Offline : public ::testing::Test {
 
 // The classic scene for 10 s: the events name hinges 1..5 flipping in order; the trajectory has its exact header and
 // one row per block every 10 ms; the summary has every documented key with sane values, its energy lost by each kind
-// of event the sum of those events' energies, and each flip-flop's line what was lost since the last one.
+// of event the sum of those events' energies, and each flip-flop's line what was lost since the last one (or the
+// start).
 TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
   const Result r = ladderd("--offline --quiet --scene " + kScenes + "classic.toml --duration 10 --events " +
                            path("ev.jsonl") + " --trajectory " + path("traj.csv") + " --summary " + path("sum.json"));
@@ -62,6 +63,9 @@ TEST_F(Offline, ClassicWritesEventsTrajectoryAndSummary) {
     removed[e["kind"]] += e["energy_removed"].get<double>();
     if (e["kind"] != "flip_flop") continue;
     EXPECT_EQ(e["detail"].get<std::string>().rfind("lost ", 0), 0u) << line;
+    // The first flip-flop's loss is counted from the start, the others' from the flip-flop before.
+    const char* since = first.empty() ? " J since the start: " : " J since the last flip-flop: ";
+    EXPECT_NE(e["detail"].get<std::string>().find(since), std::string::npos) << line;
     if (!first.count(e["hinge"].get<int>())) first[e["hinge"]] = e["t"];
   }
   ASSERT_EQ(first.size(), 5u);
@@ -225,7 +229,18 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
                              "--duration 1e-10 s is shorter than half a step (sim.dt = 0.001 s): no step would run"},
                         Case{"--offline" + scene + " --duration 1 --set ladder.blokcs=3", "did you mean 'ladder.blocks'"},
                         Case{"--offline" + scene + " --duration 1 --set sim.dt=nan", "sim.dt"},
-                        Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json", "cannot write"},
+                        Case{"--offline" + scene + " --duration 1 --summary /no/such/dir/s.json",
+                             "cannot write the summary file '/no/such/dir/s.json': No such file or directory"},
+                        Case{"--offline" + scene + " --duration 0",
+                             "--duration must be a positive number of seconds (got 0)"},
+                        Case{"--offline" + scene + " --duration -1",
+                             "--duration must be a positive number of seconds (got -1)"},
+                        Case{"--offline" + scene + " --duration 1 --set timeline.t=3",
+                             "timeline.t: the timeline is a list of [[timeline]] entries, given in the scene "
+                             "file only"},
+                        Case{scene + " --domian 3", "ladderd: unknown option '--domian' (did you mean '--domain'?)\n"},
+                        Case{scene + " --log-level foo", "log.level must be trace, debug, info, warn, error or off, "
+                                                         "not 'foo' (given as --log-level foo)"},
                         Case{"--offline" + scene + " --duration 1 --events /dev/full",
                              "writing /dev/full failed (is the disk full?)"},
                         Case{"--offline" + scene + " --duration 1 --record " + path("s.lcmlog"),

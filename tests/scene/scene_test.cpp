@@ -605,7 +605,9 @@ TEST(Overrides, AnErrorInTheFileIsStillReportedAtItsLine) {
 TEST(Overrides, UnknownKeySuggestsTheNearestOne) {
   EXPECT_EQ(error_of("", {"sim.dtt=0.001"}), "--set sim.dtt=0.001: unknown key 'sim.dtt' (did you mean 'sim.dt'?)");
   EXPECT_EQ(error_of("", {"blocks=5"}), "--set blocks=5: unknown key 'blocks' (did you mean 'ladder.blocks'?)");
-  expect_error("", "--set timeline.t=1: ", {"unknown key 'timeline.t'"}, {"timeline.t=1"});
+  expect_error("", "--set timeline.t=1: ",
+               {"timeline.t: the timeline is a list of [[timeline]] entries, given in the scene file only"},
+               {"timeline.t=1"});
   expect_error("", "--set sim.dt: ", {"expected KEY=VALUE"}, {"sim.dt"});
 }
 
@@ -631,7 +633,8 @@ std::vector<std::string> help_keys() {
   std::vector<std::string> keys;
   std::istringstream in(keys_help());
   std::string line;
-  while (std::getline(in, line)) keys.push_back(line.substr(0, line.find(' ')));
+  while (std::getline(in, line))
+    if (line.starts_with("  ")) keys.push_back(line.substr(2, line.find(' ', 2) - 2));
   return keys;
 }
 
@@ -644,6 +647,11 @@ TEST(Help, OneLinePerKey) {
   EXPECT_NE(help.find("(>= 1 and <= 1000000)"), std::string::npos);
   EXPECT_NE(help.find("euler|symplectic_euler|rattle|rk4|projection|reduced"), std::string::npos);
   EXPECT_NE(help.find("fast|balanced|accurate"), std::string::npos);
+  // The timeline's fields come last, under a heading of their own: --set does not take them.
+  const size_t fields = help.find("The fields of a [[timeline]] entry, in a scene file only (not with --set):");
+  ASSERT_NE(fields, std::string::npos);
+  EXPECT_EQ(help.find("timeline."), help.find("  timeline.t ", fields) + 2);
+  EXPECT_EQ(keys.back(), "timeline.duration");
 }
 
 TEST(Help, EveryIntegratorAndSolverItListsIsAccepted) {

@@ -1,9 +1,11 @@
-// The clients' command-line errors, said as their other errors are: the program's name first, and for an option or
-// a word it does not know, which one, and the nearest it does know. Header only: the client library has no CLI11.
+// The programs' command-line errors (ladderd, ladderctl, ladder-view), said as their other errors are: the program's
+// name first, and for an option or a word it does not know, which one, and the nearest it does know. Header only,
+// for the programs that link CLI11 (the libraries do not).
 #pragma once
 
 #include <CLI/CLI.hpp>
 
+#include "ladder/printable.hpp"
 #include "ladder/spelling.hpp"
 
 #include <algorithm>
@@ -12,7 +14,7 @@
 #include <string>
 #include <vector>
 
-namespace ladder::client {
+namespace ladder {
 
 // The name of `names` nearest to `word` (one it starts, or at most two edits away and fewer than the word has
 // letters), or "".
@@ -35,7 +37,7 @@ inline int report_parse_error(const CLI::App& app, const CLI::ParseError& e, con
   if (e.get_exit_code() == 0) return app.exit(e);
   const std::string prefix = program.empty() ? "" : program + ": ";
   if (dynamic_cast<const CLI::ExtrasError*>(&e) == nullptr) {
-    std::cerr << prefix << repeated_option(e.what()) << "\nRun with --help for the options.\n";
+    std::cerr << prefix << printable_lines(repeated_option(e.what())) << "\nRun with --help for the options.\n";
     return 2;
   }
   std::vector<std::string> options;
@@ -62,8 +64,8 @@ inline int report_parse_error(const CLI::App& app, const CLI::ParseError& e, con
     }
   }
   if (text.empty()) text = e.what();
-  std::cerr << prefix << text << "\nRun with --help for the options.\n";
+  std::cerr << prefix << printable_lines(text) << "\nRun with --help for the options.\n";
   return 2;
 }
 
-}  // namespace ladder::client
+}  // namespace ladder
