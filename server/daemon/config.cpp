@@ -2,6 +2,7 @@
 
 #include "daemon/startup.hpp"
 #include "ladder/sim_id.hpp"
+#include "ladder/spelling.hpp"
 #include "scene/scene.hpp"
 #include "transport/dds.hpp"
 
@@ -197,6 +198,11 @@ void load_config(const std::string& path, DaemonConfig& config) {
   const fs::path dir = fs::path(path).parent_path();
   DaemonConfig c = config;
   for (auto&& [table_name, table_node] : root) {
+    if (scene::is_scene_table(table_name.str()) && table_name.str() != "server" && table_name.str() != "commands" &&
+        table_name.str() != "log")
+      throw ConfigError(where(path, table_node.source()) + ": [" + std::string(table_name.str()) +
+                        "] is a table of a scene file, not of a configuration file (which has [server], [commands] "
+                        "and [log]): give a scene with --scene FILE, or as server.scene in the configuration");
     const auto* table = table_node.as_table();
     if (!table)
       throw ConfigError(where(path, table_node.source()) + ": '" + std::string(table_name.str()) +
@@ -205,9 +211,15 @@ void load_config(const std::string& path, DaemonConfig& config) {
       const std::string name = std::string(table_name.str()) + "." + std::string(key.str());
       const auto it = std::find_if(keys().begin(), keys().end(), [&](const Key& k) { return k.name == name; });
       if (it == keys().end()) {
-        std::string known;
-        for (const Key& k : keys()) known += (known.empty() ? "" : ", ") + std::string(k.name);
-        throw ConfigError(where(path, key.source()) + ": unknown key " + name + " (keys: " + known + ")");
+        std::string known, nearest;
+        std::size_t nearest_d = 3;  // at most two edits away
+        for (const Key& k : keys()) {
+          known += (known.empty() ? "" : ", ") + std::string(k.name);
+          if (const std::size_t d = edit_distance_below(name, k.name, nearest_d); d < nearest_d)
+            nearest = k.name, nearest_d = d;
+        }
+        throw ConfigError(where(path, key.source()) + ": unknown key '" + name + "'" +
+                          (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") + "; the keys: " + known);
       }
       try {
         it->read(node, c, dir);

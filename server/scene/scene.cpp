@@ -919,6 +919,10 @@ Scene remake_scene(const std::string& text, const std::string& source, const std
   return s;
 }
 
+bool is_scene_table(std::string_view name) {
+  return name == "timeline" || std::find(kTables.begin(), kTables.end(), name) != kTables.end();
+}
+
 bool is_live_key(std::string_view key) {
   const std::string_view table = table_of(key);
   return find_key(key) && (table == "sim" || table == "solver" ||

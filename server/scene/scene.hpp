@@ -74,6 +74,8 @@ std::string accuracy_of(const Scene& scene);
 
 // The keys that can change while a simulation runs: sim.*, solver.* and damping.*.
 bool is_live_key(std::string_view key);
+// A table of a scene file ([ladder], [sim], ..., [[timeline]]): ladderd's --config tells a scene file by it.
+bool is_scene_table(std::string_view name);
 // A copy of `scene` with one live setting "key=value" applied, checked exactly as --set checks it. Throws
 // SceneError ("key=value: why") for a bad value, an unknown key, or a key that is not live (the ladder's shape
 // and the initial state are fixed once built: change them in the scene file, or with ladderd's --set at its start,

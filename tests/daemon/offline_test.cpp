@@ -290,7 +290,13 @@ TEST_F(Offline, BadCommandLinesExitTwoWithAReason) {
 TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
   struct Case { std::string text, words; };
   for (const Case& c : {Case{"[server]\nphysics_rate = -5\n", ":2:16: server.physics_rate must be from 1 to 100000"},
-                        Case{"[server]\nrate = 5\n", ":2:1: unknown key server.rate"},
+                        Case{"[server]\nrate = 5\n", ":2:1: unknown key 'server.rate'; the keys: server.sim_id, "},
+                        Case{"[server]\nphyiscs_rate = 5\n",
+                             ":2:1: unknown key 'server.phyiscs_rate' (did you mean 'server.physics_rate'?); the keys: "},
+                        // A scene file given as the configuration: named so, at its first scene table.
+                        Case{"# a scene\n[ladder]\nblocks = 6\n",
+                             ":2:1: [ladder] is a table of a scene file, not of a configuration file (which has "
+                             "[server], [commands] and [log]): give a scene with --scene FILE"},
                         Case{"[server]\ndomain = \"zero\"\n", ":2:10: server.domain must be an integer"},
                         Case{"[server]\ndomain = 232\n", ":2:10: server.domain must be from 0 to 231"},
                         Case{"[commands]\nqueue = 0\n", ":2:9: commands.queue must be from 1 to 1000000"},
@@ -312,7 +318,7 @@ TEST_F(Offline, BadConfigFileIsRefusedWithItsPosition) {
                         // A NUL ends a path for the system: the log went to another file.
                         Case{"[log]\nfile = \"out\\u0000.txt\"\n", ":2:8: log.file must not hold a NUL character (U+0000)"},
                         // What the file says is quoted escaped: an escape sequence, a newline, a bidi override.
-                        Case{"[server]\n\"\\u001b[2J\\nfake\" = 1\n", ":2:1: unknown key server.\\x1b[2J\\x0afake (keys: "},
+                        Case{"[server]\n\"\\u001b[2J\\nfake\" = 1\n", ":2:1: unknown key 'server.\\x1b[2J\\x0afake'; the keys: "},
                         Case{"[server]\nsim_id = \"a\\u202eb\"\n",
                              ":2:10: server.sim_id 'a\\xe2\\x80\\xaeb' may hold only letters, digits, '-', '_' and '.'"}}) {
     std::ofstream(path("ladderd.toml")) << c.text;
