@@ -323,7 +323,7 @@ void Client::poll() {
         ++forged_;
         return;
       }
-      acks_[a.command_id] = {a.command_id, a.accepted, printable(text_of(a.reason)), a.sim_time, a.step,
+      acks_[a.command_id] = {a.command_id, a.accepted, printable(text_of(a.reason), false), a.sim_time, a.step,
                              a.command_seq};
       ++acks_received_;
     });

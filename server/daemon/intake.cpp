@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 namespace ladder::daemon {
 
@@ -44,6 +45,15 @@ bool Bucket::take(IntakeClock::time_point now) {
   at_ = now;
   if (tokens_ < 1) return false;
   tokens_ -= 1;
+  return true;
+}
+
+bool LogBudget::allow(IntakeClock::time_point now, std::uint64_t& held_back) {
+  if (!lines_.take(now)) {
+    ++held_back_;
+    return false;
+  }
+  held_back = std::exchange(held_back_, 0);
   return true;
 }
 

@@ -2,7 +2,7 @@
 // and the queues the physics thread takes from. No DDS and no threads here (the I/O thread holds the locks), so
 // that the rules are tested alone (docs/server.md, "Intake").
 //
-// A sender is one DDS command writer (one client process), named by the instance handle DDS gives it.
+// A sender is one client process: the DDS participant of its command writers (docs/server.md, "Intake").
 #pragma once
 
 #include "ladder.h"  // generated from msgs/ladder.idl
@@ -19,7 +19,7 @@
 
 namespace ladder::daemon {
 
-using SenderKey = std::uint64_t;  // dds_instance_handle_t of the sender's command writer
+using SenderKey = std::uint64_t;  // the I/O thread's number for a sender
 using IntakeClock = std::chrono::steady_clock;
 
 // A command on its way to the physics thread, with who sent it (its answer goes back to that sender's record).
@@ -58,6 +58,20 @@ class Bucket {
  private:
   double rate_, burst_, tokens_;
   IntakeClock::time_point at_;
+};
+
+// Log lines that a peer can make the server write (a refusal, a client that never reads its answers): at most
+// `per_second` a second on average, as many at once; the lines held back are counted, and said with the next one
+// written, so that a flood of them can fill neither the disk nor the console.
+class LogBudget {
+ public:
+  LogBudget(double per_second, IntakeClock::time_point now) : lines_(per_second, per_second, now) {}
+  // Whether a line may be written now; when it may, `held_back` is how many were not since the last one written.
+  bool allow(IntakeClock::time_point now, std::uint64_t& held_back);
+
+ private:
+  Bucket lines_;
+  std::uint64_t held_back_ = 0;
 };
 
 // The answer a command got, kept to answer it again.

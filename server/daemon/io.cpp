@@ -73,20 +73,19 @@ void Io::take_commands() {
   command_r_.take([&](const ladder_msg_Command& c, const dds_sample_info_t& info) {
     if (text_of(c.sim_id) != id) return;  // commands for other ladders on this domain are not ours
     ++arrived;
-    admit(sender(info.publication_handle, c, now), c, info.publication_handle, now, ready);
+    admit(sender(info.publication_handle, c, now), c, now, ready);
   });
   sh_.received.fetch_add(arrived);
   if (!waiting_.empty()) release_answerable(ready);
   if (!ready.empty()) queue_for_physics(ready);
-  for (auto& [writer, s] : senders_)
+  for (auto& [key, s] : senders_)
     if (s.rate_limited + s.unanswered > 0 && now >= s.next_report) report(s, now);
 }
 
 // One command of sender s: a repeat is answered again (or waits for the answer it shares), a command over the
 // sender's rate is refused (within the refusals' own rate) or dropped, and the rest go on, held while the sender
 // cannot hear answers yet.
-void Io::admit(Sender& s, const ladder_msg_Command& c, dds_instance_handle_t writer, Clock::time_point now,
-               std::vector<Incoming>& ready) {
+void Io::admit(Sender& s, const ladder_msg_Command& c, Clock::time_point now, std::vector<Incoming>& ready) {
   switch (s.recent.note(c)) {
     case RecentCommands::Seen::Answered:
       sh_.duplicates.fetch_add(1, std::memory_order_relaxed);
@@ -99,21 +98,21 @@ void Io::admit(Sender& s, const ladder_msg_Command& c, dds_instance_handle_t wri
       break;
   }
   if (!s.commands.take(now)) {
-    refuse_for_rate({c, writer},
+    refuse_for_rate({c, s.key},
                     "rate limit: more than " + number(sh_.config.rate) + " commands a second (commands.rate, " +
                         number(sh_.config.burst) + " at once: commands.burst) from this client; send fewer");
     return;
   }
   if (!s.ready) {
     if (s.held.size() < sh_.config.queue) {
-      s.held.push_back({c, writer});
+      s.held.push_back({c, s.key});
       return;
     }
-    refuse_for_rate({c, writer}, "rate limit: " + std::to_string(sh_.config.queue) +
+    refuse_for_rate({c, s.key}, "rate limit: " + std::to_string(sh_.config.queue) +
                                      " commands of this client are already waiting (commands.queue); send fewer");
     return;
   }
-  ready.push_back({c, writer});
+  ready.push_back({c, s.key});
 }
 
 // Commands refused before they reach the simulation: answered while the sender's refusals last, else dropped
@@ -159,16 +158,29 @@ void Io::queue_for_physics(std::vector<Incoming>& ready) {
                             " commands of this client are already waiting (commands.queue); send fewer");
 }
 
-// The sender of a command from `writer`, known or new. A new one is checked at once: usually it is ready.
+// The sender of a command from `writer`: the client of the writer's participant, known or new (a writer that had
+// left before its first command was read is a client of its own). A new one is checked at once: usually it is ready.
 Io::Sender& Io::sender(dds_instance_handle_t writer, const ladder_msg_Command& c, Clock::time_point now) {
-  if (const auto known = senders_.find(writer); known != senders_.end()) return known->second;
-  if (senders_.size() >= forget_above_) forget_departed_senders();
-  Sender& s = senders_.try_emplace(writer, sh_.config, now).first->second;
+  if (const auto known = writer_sender_.find(writer); known != writer_sender_.end())
+    return senders_.at(known->second);
+  if (writer_sender_.size() >= forget_above_) forget_departed_senders();
+  const std::optional<dds_guid_t> participant = transport::writer_participant(command_r_.entity(), writer);
+  SenderKey key = next_sender_;
+  if (participant) {
+    std::array<std::uint8_t, 16> guid;
+    std::copy(std::begin(participant->v), std::end(participant->v), guid.begin());
+    key = participant_sender_.try_emplace(guid, next_sender_).first->second;
+  }
+  if (key == next_sender_) ++next_sender_;
+  writer_sender_.emplace(writer, key);
+  const auto [it, fresh] = senders_.try_emplace(key, key, sh_.config, now);
+  Sender& s = it->second;
+  if (!fresh) return s;  // another writer of a client already known
   s.client = transport::printable(text_of(c.client_id));  // (for the log lines)
-  s.participant = transport::writer_participant(command_r_.entity(), writer);
+  s.participant = participant;
   check(s, now);
   if (!s.ready) {
-    waiting_.push_back(writer);
+    waiting_.push_back(key);
     spdlog::debug("client '{}': its commands wait until its ack and event readers are found", s.client);
   }
   return s;
@@ -191,16 +203,20 @@ void Io::check(Sender& s, Clock::time_point now) {
       spdlog::debug("client '{}': its readers found after {:.0f} ms", s.client, 1e3 * waited);
   } else if (waited >= sh_.config.reader_wait) {
     s.ready = true;
-    spdlog::warn("client '{}': its ack reader not found in {:g} s; its commands go on, and it may miss their answers",
-                 s.client, sh_.config.reader_wait);
+    if (std::uint64_t held_back = 0; slow_readers_log_.allow(now, held_back))
+      spdlog::warn("client '{}': its ack reader not found in {:g} s; its commands go on, and it may miss their "
+                   "answers{}",
+                   s.client, sh_.config.reader_wait,
+                   held_back == 0 ? std::string()
+                                  : " (and " + std::to_string(held_back) + " more clients since the last such line)");
   }
 }
 
 // Moves the commands of the senders that have become ready to `ready`, in their order.
 void Io::release_answerable(std::vector<Incoming>& ready) {
   const Clock::time_point now = Clock::now();
-  std::erase_if(waiting_, [&](dds_instance_handle_t writer) {
-    Sender& s = senders_.at(writer);
+  std::erase_if(waiting_, [&](SenderKey key) {
+    Sender& s = senders_.at(key);
     if (now < s.next_check) return false;
     check(s, now);
     if (!s.ready) return false;
@@ -210,13 +226,20 @@ void Io::release_answerable(std::vector<Incoming>& ready) {
   });
 }
 
-// Forgets the command writers that have left (each ladderctl run is one), keeping those still waiting.
+// Forgets the command writers that have left (each ladderctl run is one), and the clients that have none left,
+// keeping those still waiting.
 void Io::forget_departed_senders() {
-  std::vector<dds_instance_handle_t> keep = transport::matched_writers(command_r_.entity());
-  keep.insert(keep.end(), waiting_.begin(), waiting_.end());
+  std::vector<dds_instance_handle_t> matched = transport::matched_writers(command_r_.entity());
+  std::sort(matched.begin(), matched.end());
+  std::erase_if(writer_sender_,
+                [&](const auto& w) { return !std::binary_search(matched.begin(), matched.end(), w.first); });
+  std::vector<SenderKey> keep(waiting_);
+  for (const auto& [writer, key] : writer_sender_) keep.push_back(key);
   std::sort(keep.begin(), keep.end());
-  std::erase_if(senders_, [&](const auto& s) { return !std::binary_search(keep.begin(), keep.end(), s.first); });
-  forget_above_ = std::max<std::size_t>(256, 2 * senders_.size());
+  const auto kept = [&](SenderKey key) { return std::binary_search(keep.begin(), keep.end(), key); };
+  std::erase_if(senders_, [&](const auto& s) { return !kept(s.first); });
+  std::erase_if(participant_sender_, [&](const auto& p) { return !kept(p.second); });
+  forget_above_ = std::max<std::size_t>(256, 2 * writer_sender_.size());
 }
 
 // At the stop: the commands the physics thread did not take, and those still held, are refused. (A sender still
@@ -227,8 +250,8 @@ void Io::refuse_leftovers() {
     std::lock_guard lock(sh_.inbox_mutex);
     left = sh_.inbox.drain();
   }
-  for (dds_instance_handle_t writer : waiting_) {
-    std::deque<Incoming>& held = senders_.at(writer).held;
+  for (SenderKey key : waiting_) {
+    std::deque<Incoming>& held = senders_.at(key).held;
     left.insert(left.end(), held.begin(), held.end());
     held.clear();
   }

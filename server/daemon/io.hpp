@@ -11,10 +11,12 @@
 #include "transport/lcm_log.hpp"
 #include "transport/topics.hpp"
 
+#include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -46,13 +48,15 @@ class Io {
   void run();
 
  private:
-  // A client's command writer: whether this server can answer it yet (its ack and event writers have found a
-  // reader in the writer's participant), and its commands meanwhile.
-  // Also what it may send (its rate), what it sent lately (repeats are answered, not applied) and what this server
-  // could not answer it, for the log.
+  // A client: the DDS participant of one or more command writers (one client process; every writer it makes shares
+  // its limits, so that a process cannot multiply them by making writers). Whether this server can answer it yet
+  // (its ack and event writers have found a reader in that participant), and its commands meanwhile. Also what it may
+  // send (its rate), what it sent lately (repeats are answered, not applied) and what this server could not answer
+  // it, for the log.
   struct Sender {
-    Sender(const ServerConfig& c, Clock::time_point now)
-        : first_seen(now), commands(c.rate, c.burst, now), refusals(c.rate, c.burst, now), next_report(now) {}
+    Sender(SenderKey k, const ServerConfig& c, Clock::time_point now)
+        : key(k), first_seen(now), commands(c.rate, c.burst, now), refusals(c.rate, c.burst, now), next_report(now) {}
+    SenderKey key;                          // its commands' Incoming::sender
     std::string client;                     // the client id of its first command, for the log
     std::optional<dds_guid_t> participant;  // none: the writer had left when its first command was read
     Clock::time_point first_seen, next_check;
@@ -66,8 +70,7 @@ class Io {
   };
 
   void take_commands();
-  void admit(Sender& s, const ladder_msg_Command& c, dds_instance_handle_t writer, Clock::time_point now,
-             std::vector<Incoming>& ready);
+  void admit(Sender& s, const ladder_msg_Command& c, Clock::time_point now, std::vector<Incoming>& ready);
   Sender& sender(dds_instance_handle_t writer, const ladder_msg_Command& c, Clock::time_point now);
   void check(Sender& s, Clock::time_point now);
   void release_answerable(std::vector<Incoming>& ready);
@@ -108,9 +111,13 @@ class Io {
   std::optional<SceneOut> scene_;
   Clock::time_point scene_written_{};
   Outbox out_;
-  std::unordered_map<dds_instance_handle_t, Sender> senders_;
-  std::vector<dds_instance_handle_t> waiting_;  // the senders not ready yet
-  std::size_t forget_above_ = 256;              // senders known before those that have left are forgotten
+  std::unordered_map<SenderKey, Sender> senders_;
+  std::unordered_map<dds_instance_handle_t, SenderKey> writer_sender_;  // each command writer's client
+  std::map<std::array<std::uint8_t, 16>, SenderKey> participant_sender_;  // each client participant's, by GUID
+  SenderKey next_sender_ = 1;
+  std::vector<SenderKey> waiting_;  // the senders not ready yet
+  std::size_t forget_above_ = 256;  // writers known before those that have left (and their clients) are forgotten
+  LogBudget slow_readers_log_{1, Clock::now()};  // "its ack reader not found": one line a second
   std::unordered_map<std::string, Clock::time_point> write_failure_logged_;  // by topic
 };
 

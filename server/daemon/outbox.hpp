@@ -118,7 +118,9 @@ inline ladder_msg_CommandAck ack_for(const ladder_msg_Command& c, const Outcome&
   std::memcpy(a.client_id, c.client_id, sizeof a.client_id);
   a.command_id = c.command_id;
   a.accepted = r.accepted;
-  transport::copy_text(a.reason, r.reason);
+  // A reason may quote a client's text (a scene name, a setting): made printable here too, for clients of any make
+  // that print it as it comes. A backslash is kept, so that our clients' own printable() does not double it.
+  transport::copy_text(a.reason, printable(r.reason, false));
   return a;
 }
 

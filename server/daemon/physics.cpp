@@ -98,9 +98,12 @@ void Physics::take_commands() {
     else if (r.accepted)
       spdlog::debug("{} (command {}) from {}: accepted at t = {:.6f} s{}", kind, c.command_id,
                     printable(text_of(c.client_id)), t, taking_);
-    else
-      spdlog::info("{} (command {}) from {}: refused: {}", kind, c.command_id, printable(text_of(c.client_id)),
-                   printable(r.reason));
+    else if (std::uint64_t held_back = 0; refusal_log_.allow(Clock::now(), held_back))
+      spdlog::info("{} (command {}) from {}: refused: {}{}", kind, c.command_id, printable(text_of(c.client_id)),
+                   printable(r.reason),
+                   held_back == 0 ? std::string()
+                                  : " (" + std::to_string(held_back) +
+                                        " refusals before it not logged: more than 20 a second; the Stats count all)");
     // SceneInfo carries the live settings and the rates: published (and logged) again when they change. A setting
     // that leaves them as they were (a value they already had) sends none: at N = 10 000 a SceneInfo is 80 kB of
     // masses to every reader.

@@ -64,6 +64,7 @@ class Physics {
   std::uint64_t missed_ = 0, accepted_ = 0, refused_ = 0;
   std::size_t taken_ = 0;  // commands taken since the last tick's step (at most commands.per_tick)
   const char* taking_ = "";  // where take_commands() is called from, for the debug log
+  LogBudget refusal_log_{20, Clock::now()};  // the refusals' info lines: 20 a second (a client may send 1000)
   double sim_at_last_stats_ = 0;
   std::uint32_t stats_generation_ = 0;  // the scene's generation at the last Stats
   Clock::time_point last_stats_{}, last_publish_{};

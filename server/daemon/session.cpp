@@ -1,4 +1,5 @@
 #include "daemon/session.hpp"
+#include "ladder/printable.hpp"
 
 #include <toml++/toml.h>
 
@@ -252,10 +253,13 @@ std::optional<double> toml_number(const std::string& text) {
 // The server's own live keys, which set_param() takes before a setting reaches the scene.
 constexpr const char* kServerLiveKeys = "server.real_time_factor, server.publish_rate";
 
+// How much of a long scene name or setting a refusal quotes.
+constexpr std::size_t kShownName = 80;
+
 Outcome Session::set_param(const std::string& full) {
   // A refusal names the setting first; one of up to 1024 characters would fill the 512 of an answer's reason before
   // the reason came: a long one is named by its start and length.
-  constexpr std::size_t kShown = 80;
+  constexpr std::size_t kShown = kShownName;
   const std::string setting = full.size() <= kShown + 20
                                   ? full
                                   : full.substr(0, kShown) + "... (" + std::to_string(full.size()) + " characters)";
@@ -320,6 +324,12 @@ std::string scene_names(const std::string& dir) {
 Outcome Session::load(const std::string& name) {
   namespace fs = std::filesystem;
   if (name.empty()) return {false, "load: give a scene name, e.g. classic"};
+  // A name of up to 1024 characters would fill the 512 of an answer's reason before the reason and the list of
+  // scenes came: a long one is named by its start and length, as set_param() names a setting.
+  if (name.size() > kShownName + 20)
+    return {false, "no scene '" + std::string(first_characters(name, kShownName)) + "... (" +
+                       std::to_string(name.size()) +
+                       " characters)' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
   if (name.find('/') != std::string::npos || name.find('\\') != std::string::npos || name.starts_with("."))
     return {false, "not permitted: scenes are loaded by name from the server's scene directory " + scenes_dir_};
   const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");

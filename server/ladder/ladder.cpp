@@ -474,15 +474,27 @@ void Ladder::step_guarded(double h, int depth, const core::Snapshot* start) {
   const std::string why = diverged(e0, h);
   if (!why.empty()) {
     world_.restore(*start);
-    if (depth >= kMaxHalvings)
+    if (depth >= kMaxHalvings) {
+      // A hinge error within solver.tolerance is a velocity of up to tolerance / h in the next step: against steps
+      // this short a coarse tolerance is noise that no smaller step can cure (measured: the classic ladder at rest
+      // with sim.dt = 1e-6 s, sim.adaptive and solver.tolerance = 1e-7 m failed 0.14 ms in; with 1e-12 m it runs).
+      const double noise = world_.options().tolerance / h;
+      const std::string tolerance =
+          noise < 1e-4 ? std::string()
+                       : "; or a smaller solver.tolerance: its " + format_number(world_.options().tolerance) +
+                             " m is a velocity error of up to " + format_number(noise) + " m/s in steps of " +
+                             format_number(h) + " s (the default is 1e-12 m)";
       throw std::runtime_error(why + " even with 1/" + std::to_string(1 << kMaxHalvings) + " of the time step at t = " +
                                format_number(world_.time()) + " s: " +
                                too_violent(step_h_,  // (h: a piece of it, when the step was cut at an event)
                                            world_.options().integrator == core::Integrator::Euler
                                                ? "sim.integrator = euler gains energy at every step: use another "
-                                                 "(midpoint, the default, keeps it), or a much smaller sim.dt"
+                                                 "(midpoint, the default, keeps it), or a much smaller sim.dt" +
+                                                     tolerance
                                                : "try a smaller sim.dt, or check masses, forces, grips, damping and "
-                                                 "the tip duration"));
+                                                 "the tip duration" +
+                                                     tolerance));
+    }
     if (depth == 0 && !halving_) emit(EventKind::SolverWarning, 0, 0, why + ": steps redone in halves");
     halving_ = true;
     step_guarded(0.5 * h, depth + 1);
@@ -960,6 +972,9 @@ void Ladder::join_hinge(int k) {
   if (h.status != HingeStatus::Broken) throw std::invalid_argument("hinge " + std::to_string(k) + " is not broken");
   if (k == 0 && spec_.top == Top::Free) throw std::invalid_argument("the top block has no hold or pin to join");
   if (k == 0 && spec_.top == Top::Held) {
+    // A user's grip on block 0 would be left on a block the hand moves (a drag of it taken and doing nothing).
+    if (!grips_.empty() && grips_.front().block == 0)
+      throw std::invalid_argument("block 0 is grabbed; release it before the hand takes it back (join 0)");
     // The hand takes hold of the block where it is and stops it.
     const double before = world_.kinetic_energy();
     hand_->centre = world_.part_position(0);

@@ -81,6 +81,22 @@ TEST(Bucket, GivesTheBurstAtOnceThenTheRate) {
   EXPECT_EQ(taken, 5);
 }
 
+// The peer-made log lines: 2 a second here; the lines held back are counted and given with the next one written.
+TEST(LogBudget, WritesItsRateAndSaysHowManyItHeldBack) {
+  const auto t0 = daemon::IntakeClock::time_point{} + std::chrono::hours(1);
+  daemon::LogBudget log(2, t0);
+  std::uint64_t held_back = 99;
+  EXPECT_TRUE(log.allow(t0, held_back));
+  EXPECT_EQ(held_back, 0u);
+  EXPECT_TRUE(log.allow(t0, held_back));
+  for (int i = 0; i < 1000; ++i) EXPECT_FALSE(log.allow(t0 + std::chrono::milliseconds(100), held_back));
+  EXPECT_TRUE(log.allow(t0 + std::chrono::milliseconds(500), held_back));
+  EXPECT_EQ(held_back, 1000u);
+  EXPECT_FALSE(log.allow(t0 + std::chrono::milliseconds(600), held_back));
+  EXPECT_TRUE(log.allow(t0 + std::chrono::seconds(2), held_back));
+  EXPECT_EQ(held_back, 1u);
+}
+
 TEST(RecentCommands, ARepeatIsPendingThenAnswered) {
   daemon::RecentCommands r;
   const Incoming a = from(1, 7);
@@ -279,6 +295,95 @@ TEST_F(Server, ASenderOverItsRateIsRefusedThenDroppedAndCounted) {
     std::this_thread::sleep_for(Millis(20));
   EXPECT_NE(server_->log().find("client 'fast' sends faster than commands.rate (1/s)"), std::string::npos)
       << server_->log();
+}
+
+// One process with many command writers is one client: its writers share its rate, its queue and its memory of
+// answers (before, each writer was a client of its own, and a process with 200 writers took ladderd from 12 to 318
+// MB and delayed other clients' answers by seconds: a fresh-eyes probe, docs/robustness.md). Here 20 writers of one
+// participant send 5 commands each (100, within each one's own burst of 10 had it one) with commands.rate 1 a
+// second: at most the burst and the refill are accepted, and every command is accounted for.
+TEST_F(Server, ManyCommandWritersOfOneProcessShareOneClientsLimits) {
+  start(with_config("[commands]\nrate = 1\nburst = 10\n"));
+  BareSender bare(domain_, sim_id_);
+  bare.add_readers();
+  std::vector<transport::Writer<ladder_msg_Command>> writers;
+  for (int w = 0; w < 20; ++w) writers.emplace_back(bare.participant, bare.topics.command, transport::Profile::Command);
+  const auto matched = Clock::now() + kAnswer;
+  for (const auto& w : writers)
+    while (w.matched() == 0 && Clock::now() < matched) std::this_thread::sleep_for(Millis(5));
+  std::this_thread::sleep_for(Millis(300));  // the server finds the readers: nothing is held for them
+  const auto t0 = Clock::now();
+  std::uint64_t id = 0;
+  for (int round = 0; round < 5; ++round)
+    for (auto& w : writers) {
+      ladder_msg_Command m = cmd::set("damping.hinge=0");
+      transport::copy_text(m.sim_id, sim_id_);
+      transport::copy_text(m.client_id, "multi");
+      m.command_id = ++id;
+      ASSERT_GE(dds_write(w.entity().get(), &m), 0);
+    }
+  const double sending = std::chrono::duration<double>(Clock::now() - t0).count();
+  const auto stats = c().wait_stats([](const ladder_msg_Stats& s) { return s.commands_received >= 100; }, kAnswer);
+  ASSERT_TRUE(stats.has_value());
+  const auto refill = static_cast<std::uint64_t>(sending) + 1;
+  EXPECT_GE(stats->commands_accepted, 10u);
+  EXPECT_LE(stats->commands_accepted, 10u + refill) << "the writers had a bucket each";
+  EXPECT_EQ(stats->commands_accepted + stats->commands_rate_limited + stats->commands_unanswered, 100u);
+  const client::Ack mine = c().call(cmd::set("damping.hinge=0"), kAnswer);  // another process: a bucket of its own
+  EXPECT_TRUE(mine.accepted) << mine.reason;
+}
+
+// Each refusal is logged at info, but a client sending 1000 refused commands a second must not write 1000 lines a
+// second into the server's log: 20 a second are written, and the next one written says how many were not (a probe's
+// flood had made 306 000 lines). The Stats count them all.
+TEST_F(Server, RefusalsAreLoggedTwentyASecondAtMost) {
+  start();
+  const auto t0 = Clock::now();
+  std::vector<std::uint64_t> ids;
+  for (int i = 0; i < 500; ++i) ids.push_back(c().send(cmd::break_hinge(999)));
+  ASSERT_TRUE(c().wait_ack(ids.back(), kAnswer).has_value());
+  const double taken = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::this_thread::sleep_for(Millis(1100));  // the budget refills
+  const client::Ack last = c().call(cmd::break_hinge(998), kAnswer);
+  EXPECT_FALSE(last.accepted);
+  const auto stats = c().wait_stats([](const ladder_msg_Stats& s) { return s.commands_refused >= 501; }, kAnswer);
+  ASSERT_TRUE(stats.has_value());
+  const auto logged = Clock::now() + kAnswer;
+  while (server_->log().find("hinge 998") == std::string::npos && Clock::now() < logged)
+    std::this_thread::sleep_for(Millis(20));
+  const std::string log = server_->log();
+  std::size_t lines = 0;
+  for (std::size_t at = log.find(": refused: "); at != std::string::npos; at = log.find(": refused: ", at + 1)) ++lines;
+  EXPECT_GE(lines, 21u);                                                    // the first 20 and the last
+  EXPECT_LE(lines, 21u + static_cast<std::size_t>(20 * (taken + 1.2)));  // and the refill while they came
+  const std::size_t last_line = log.find("hinge 998");
+  ASSERT_NE(last_line, std::string::npos) << log;
+  EXPECT_NE(log.find(" refusals before it not logged: more than 20 a second; the Stats count all)", last_line),
+            std::string::npos)
+      << log.substr(last_line);
+}
+
+// An answer's reason may quote the client's own text (the scene name of a load): it goes out made printable, for a
+// client of any make that prints it as it comes (before, an escape sequence in the name reached the answer raw).
+TEST_F(Server, AnAnswerQuotesAClientsTextMadePrintable) {
+  start();
+  BareSender bare(domain_, sim_id_);
+  bare.add_readers();
+  std::this_thread::sleep_for(Millis(300));  // the server finds the readers
+  ladder_msg_Command m = cmd::load("\x1b[2J\xe2\x80\xaegone\nline");
+  transport::copy_text(m.sim_id, sim_id_);
+  transport::copy_text(m.client_id, "bare");
+  m.command_id = 7;
+  ASSERT_GE(dds_write(bare.command_w.entity().get(), &m), 0);
+  std::string reason;
+  const auto deadline = Clock::now() + kAnswer;
+  while (reason.empty() && Clock::now() < deadline) {
+    bare.ack_r->take([&](const ladder_msg_CommandAck& a, const dds_sample_info_t&) {
+      if (a.command_id == 7) reason = transport::text_of(a.reason);
+    });
+    std::this_thread::sleep_for(Millis(5));
+  }
+  EXPECT_EQ(reason.rfind("no scene '\\x1b[2J\\xe2\\x80\\xaegone\\x0aline' in ", 0), 0u) << reason;
 }
 
 // A million commands as fast as one writer sends them, with the default limits: the server's memory stays bounded

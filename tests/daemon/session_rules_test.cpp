@@ -131,6 +131,14 @@ TEST(SessionRules, EveryLadderActionRefusalWordForWord) {
   accepted(*s, Verb{Step{300}});
   run_pending(*s);  // block 5 falls away
   refused(*s, action(m::Join{5}), "hinge 5: the corners are ", false);
+  // Block 0 let go of by the hand may be grabbed; the hand takes it back only once the grip is released (before, a
+  // join left the grip on the held block, and drags of it were accepted and did nothing).
+  accepted(*s, action(m::Break{0}));
+  accepted(*s, action(m::Grab{0, {0, 0}, {}, {}, 0}));
+  refused(*s, action(m::Join{0}), "block 0 is grabbed; release it before the hand takes it back (join 0)");
+  accepted(*s, action(m::Release{0}));
+  accepted(*s, action(m::Join{0}));
+  refused(*s, action(m::Grab{0, {0, 0}, {}, {}, 0}), "block 0 is held by the hand; grab another block");
   accepted(*s, action(m::Tip{}));
   refused(*s, action(m::Tip{}), "a tip is already in progress (it ends at t = ", false);
 }
@@ -157,6 +165,12 @@ TEST(SessionRules, EverySessionVerbRefusalWordForWord) {
   refused(*s, Verb{Load{"no-such-scene"}},
           "no scene 'no-such-scene' in " + kScenes +
               " (available: classic, double-ripple, free-chain, long, tall, tall-double-ripple, toy-1889)");
+  // A name as long as a command's text (1024 bytes): named by its first 80 characters and its length, so that the
+  // reason and the list of scenes still fit the 512 bytes of an answer's reason.
+  const std::string reason = "no scene '" + std::string(80, 'n') + "... (1024 characters)' in " + kScenes +
+                             " (available: classic, double-ripple, free-chain, long, tall, tall-double-ripple, toy-1889)";
+  ASSERT_LT(reason.size(), 512u);
+  refused(*s, Verb{Load{std::string(1024, 'n')}}, reason);
   // A kind that names no command, as it may come from a client or a log.
   CommandFields unknown;
   unknown.kind = 14;

@@ -186,6 +186,28 @@ TEST(TimeStep, AFailureInsideACutStepLeavesTheClockAtTheStateItStoppedAt) {
   EXPECT_EQ(first_non_finite(sim.ladder()), -1);
 }
 
+// A coarse solver.tolerance against a tiny step is noise no smaller step cures (a hinge error within the tolerance
+// is a velocity of up to tolerance / h): the ladder at rest with sim.dt = 1e-6 s, adaptive, and solver.tolerance =
+// 1e-7 m fails 0.14 ms in, and the reason names solver.tolerance and the velocity it allows, not only sim.dt (a
+// fresh-eyes probe: "try a smaller sim.dt" made it fail sooner). With the default tolerance the same ladder rests.
+TEST(TimeStep, AFailureOfACoarseToleranceNamesTheTolerance) {
+  const std::vector<std::string> settings{"sim.dt=1e-6", "sim.adaptive=true"};
+  std::vector<std::string> coarse = settings;
+  coarse.push_back("solver.tolerance=1e-7");
+  scene::Simulation sim(shipped("classic.toml", coarse));
+  std::string error;
+  try {
+    while (sim.time() < 2e-3) sim.step();
+  } catch (const std::runtime_error& e) {
+    error = e.what();
+  }
+  ASSERT_NE(error, "") << "the ladder did not fail";
+  EXPECT_NE(error.find("; or a smaller solver.tolerance: its 1e-07 m is a velocity error of up to "), std::string::npos)
+      << error;
+  scene::Simulation fine(shipped("classic.toml", settings));
+  EXPECT_NO_THROW(while (fine.time() < 2e-3) fine.step());
+}
+
 // One block, free and undamped: it falls as a point would. Symplectic Euler gives y_n = y_0 - g h^2 n (n + 1) / 2
 // exactly (to rounding, 1e-12 m over 1 s).
 // A step that is redone in halves must not leave a gap in any joint: at dt = 0.1 s a lock inside a halved step
