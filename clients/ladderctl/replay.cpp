@@ -192,7 +192,7 @@ int replay(const ReplayOptions& o) {
   g_stop = false;
   const client::StopSignals stop(on_stop);
   std::cout << "replaying " << o.log << " as sim id '" << o.sim_id << "' on DDS domain " << o.domain
-            << " (Ctrl-C to stop)\n";
+            << " (Ctrl-C to stop)" << std::endl;  // (at once, also into a file or a pipe)
   Pacer pacer(o.speed);
   std::uint64_t states = 0, events = 0, bad_states = 0, early_states = 0;
   double last_t = 0, last_early = 0;
@@ -265,9 +265,12 @@ int replay(const ReplayOptions& o) {
   if (bad_states)
     std::cerr << "ladderctl: " << o.log << ": skipped " << bad_states
               << " state(s) with a hinge status other than 0, 1 or 2 (hinged, locked, broken)\n";
-  std::printf("replayed %llu states and %llu events, up to t = %.3f s\n", static_cast<unsigned long long>(states),
-              static_cast<unsigned long long>(events), last_t);
-  // Nothing a viewer could draw is a failure of the input, as a log that cannot be read is (unless stopped first).
+  // Nothing a viewer could draw is a failure of the input, as a log that cannot be read is (unless stopped first):
+  // said instead of "replayed 0 states".
+  if (states > 0 || rc != 0 || g_stop)
+    std::printf("replayed %llu states and %llu events, up to t = %.3f s\n", static_cast<unsigned long long>(states),
+                static_cast<unsigned long long>(events), last_t);
+  std::fflush(stdout);
   if (states == 0 && rc == 0 && !g_stop) {
     rc = 2;
     if (bad_states > 0)
