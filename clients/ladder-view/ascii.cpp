@@ -161,7 +161,8 @@ class Terminal {
 std::vector<std::string> heading(const Options& o, const Feed& feed, const client::State& s, bool keys,
                                  const std::string& answer) {
   char line[512];
-  const std::string rtf = feed.stats() ? client::fixed(feed.stats()->real_time_factor, 2) : "-";
+  // (paused, the last second's measure is of a clock that has stopped meanwhile: none is shown)
+  const std::string rtf = feed.stats() && !s.paused ? client::fixed(feed.stats()->real_time_factor, 2) : "-";
   // What changes first, the sim id last: a narrow terminal cuts the end.
   std::snprintf(line, sizeof line, "t = %s s%s  real-time x%s  %s, %u blocks  sim id '%s'",
                 client::fixed(s.sim_time, 3).c_str(), s.paused ? "  PAUSED" : "", rtf.c_str(),

@@ -495,7 +495,8 @@ void draw_hud(cairo_t* cr, const Camera& cam, const Hud& hud, const client::Stat
     std::vector<std::string> top;
     char buf[320];
     if (s) {
-      const std::string rtf = hud.real_time_factor >= 0 ? client::fixed(hud.real_time_factor, 2) : "-";
+      const std::string rtf =
+          hud.real_time_factor >= 0 && !s->paused ? client::fixed(hud.real_time_factor, 2) : "-";  // (as ascii.cpp)
       std::snprintf(buf, sizeof buf, "%s  t = %s s  real-time x%s%s", hud.title.c_str(),
                     client::fixed(s->sim_time, 3).c_str(), rtf.c_str(), s->paused ? "  PAUSED" : "");
       top.emplace_back(buf);

@@ -253,10 +253,11 @@ void print_state(const client::State& s, bool json) {
     return;
   }
   std::string flips;
-  for (std::size_t k = 1; k < s.hinges.size() && k <= 16; ++k) flips += std::to_string(s.hinges[k].flips) + " ";
+  for (std::size_t k = 1; k < s.hinges.size() && k <= 16; ++k)
+    flips += (flips.empty() ? "" : " ") + std::to_string(s.hinges[k].flips);
   std::printf("t = %9s s  step %-8llu %s energy %s J  flips per hinge: %s%s\n", client::fixed(s.sim_time, 4).c_str(),
               static_cast<unsigned long long>(s.step), s.paused ? "paused " : "", client::fixed(s.energy, 6).c_str(),
-              flips.c_str(), s.hinges.size() > 17 ? "..." : "");
+              flips.c_str(), s.hinges.size() > 17 ? " ..." : "");
 }
 
 // The event kinds ladderd publishes: the ladder's (server/ladder/ladder.cpp, to_string(EventKind)) and the server's

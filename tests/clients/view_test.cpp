@@ -963,6 +963,8 @@ TEST_F(View, TerminalAt80x24NamesTheKeysTipsPausesAndQuits) {
   term.type(" ");
   EXPECT_TRUE(term.read_until("pause: accepted at t = ", 20, before_pause)) << term.screen();
   EXPECT_TRUE(term.read_until("PAUSED", 10, before_pause)) << term.screen();
+  // Paused, no real-time factor is shown (the last second's measure was of a clock that has since stopped).
+  EXPECT_TRUE(term.read_until("  PAUSED  real-time x-  ", 10, before_pause)) << term.screen();
   EXPECT_TRUE(client_->wait_state([](const client::State& st) { return st.paused; }, kAnswer).has_value());
   // The answer is news for 10 s, then the heading says again how to tip from elsewhere (paused, no state comes to
   // redraw the frame: the answer's going does).
