@@ -447,6 +447,9 @@ bool Client::wait_for_server(Millis timeout) {
 std::uint64_t Client::send(ladder_msg_Command c) {
   if (!may_command()) throw PermissionDenied(denied_);
   const std::uint64_t id = next_id_++;
+  // An answer to this id that came before the command went out is not its answer: another participant sent a
+  // command under this client's id (anyone on the domain may, without DDS Security), and the server answered it.
+  acks_.erase(id);
   resend(c, id);
   return id;
 }

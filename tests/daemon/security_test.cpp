@@ -334,6 +334,26 @@ TEST_F(Security, WithoutSecurityAForgedAckIsNeverTaken) {
               static_cast<unsigned long long>(client_->forged()));
 }
 
+// Without DDS Security another participant may send a command under this client's id (it reads the ids off the
+// domain); the server answers it, and the answer reaches this client as if it were its own. One that comes before
+// this client sends that command id is not taken for its answer: here a spoofer's accepted pause arrives as "victim"
+// command 1 before the victim sends its own command 1 (a break of a hinge that does not exist), whose answer is its
+// own refusal.
+TEST_F(Security, WithoutSecurityASpoofersAnswerThatCameFirstIsNotTaken) {
+  ASSERT_NO_FATAL_FAILURE(start(""));
+  Client victim(domain_, sim_id_, "victim");
+  Client spoofer(domain_, sim_id_, "victim");
+  ASSERT_TRUE(victim.wait_for_server(kStart));
+  ASSERT_TRUE(spoofer.wait_for_server(kStart));
+  ASSERT_TRUE(spoofer.call(cmd::pause(), kAnswer).accepted);  // command 1 under "victim"
+  // The victim's reader has it too once a State after the pause reaches it (acks come before the next State).
+  ASSERT_TRUE(victim.wait_state([](const client::State& st) { return st.paused; }, kAnswer).has_value());
+  victim.wait_state([](const client::State&) { return false; }, Millis(200));
+  const client::Ack mine = victim.call(cmd::break_hinge(99), kAnswer);
+  EXPECT_FALSE(mine.accepted) << "took the spoofer's answer to its command 1";
+  EXPECT_EQ(mine.reason, "no hinge 99 (hinges are 0..5; hinge 0 is the top block's hold)");
+}
+
 // Figures for docs/security.md (printed, not asserted): the round trip of a command with and without security.
 void ack_latency(Client& c, const char* what) {
   ASSERT_TRUE(c.call(cmd::pause(), kAnswer).accepted);
