@@ -22,7 +22,7 @@ inline CLI::Validator domain_check() {
           return "'" + text + "' is not a DDS domain id (0 to " + std::to_string(kMaxDomain) + ")";
         return {};
       },
-      "INT");
+      "");  // (no words in --help: the type, INT, says it)
 }
 
 }  // namespace ladder::transport
