@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");
   app.add_flag("--quiet", quiet, "no progress lines (offline)");
-  app.add_flag("--keys", keys, "list every scene key (usable with --set) and exit");
+  app.add_flag("--keys", keys, "list every scene key (those --set takes, then the timeline's fields) and exit");
   app.set_version_flag("--version", std::string("ladderd ") + kVersion);
   try {
     app.parse(argc, argv);
