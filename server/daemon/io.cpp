@@ -76,6 +76,12 @@ void Io::take_commands() {
     admit(sender(info.publication_handle, c, now), c, now, ready);
   });
   sh_.received.fetch_add(arrived);
+  // Clients that have left are forgotten within a second (their memory of answers, about 0.6 MB each, is kept no
+  // longer than they are there), and at once when many writers have come (forget_above_).
+  if (now >= next_forget_) {
+    forget_departed_senders();
+    next_forget_ = now + std::chrono::seconds(1);
+  }
   if (!waiting_.empty()) release_answerable(ready);
   if (!ready.empty()) queue_for_physics(ready);
   for (auto& [key, s] : senders_)
@@ -104,12 +110,17 @@ void Io::admit(Sender& s, const ladder_msg_Command& c, Clock::time_point now, st
     return;
   }
   if (!s.ready) {
-    if (s.held.size() < sh_.config.queue) {
+    if (s.held.size() < sh_.config.queue && held_ < kHeldQueues * sh_.config.queue) {
       s.held.push_back({c, s.key});
+      ++held_;
       return;
     }
-    refuse_for_rate({c, s.key}, "rate limit: " + std::to_string(sh_.config.queue) +
-                                     " commands of this client are already waiting (commands.queue); send fewer");
+    refuse_for_rate({c, s.key}, s.held.size() >= sh_.config.queue
+                                    ? "rate limit: " + std::to_string(sh_.config.queue) +
+                                          " commands of this client are already waiting (commands.queue); send fewer"
+                                    : "rate limit: this server already holds " + std::to_string(held_) +
+                                          " commands of clients whose answer readers it has not found; send them "
+                                          "again once your client hears answers");
     return;
   }
   ready.push_back({c, s.key});
@@ -221,6 +232,7 @@ void Io::release_answerable(std::vector<Incoming>& ready) {
     check(s, now);
     if (!s.ready) return false;
     ready.insert(ready.end(), s.held.begin(), s.held.end());
+    held_ -= s.held.size();
     s.held.clear();
     return true;
   });
@@ -240,6 +252,8 @@ void Io::forget_departed_senders() {
   std::erase_if(senders_, [&](const auto& s) { return !kept(s.first); });
   std::erase_if(participant_sender_, [&](const auto& p) { return !kept(p.second); });
   forget_above_ = std::max<std::size_t>(256, 2 * writer_sender_.size());
+  // (A waiting sender is kept with its held commands whether its writers are there or not: they go on at its wait's
+  // end, and held_ counts them.)
 }
 
 // At the stop: the commands the physics thread did not take, and those still held, are refused. (A sender still
@@ -255,6 +269,7 @@ void Io::refuse_leftovers() {
     left.insert(left.end(), held.begin(), held.end());
     held.clear();
   }
+  held_ = 0;
   for (const Incoming& in : left) refuse(in.command, "ladderd stopped before it could take this command");
 }
 

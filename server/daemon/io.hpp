@@ -117,6 +117,12 @@ class Io {
   SenderKey next_sender_ = 1;
   std::vector<SenderKey> waiting_;  // the senders not ready yet
   std::size_t forget_above_ = 256;  // writers known before those that have left (and their clients) are forgotten
+  Clock::time_point next_forget_{};  // and once a second
+  // Commands held for clients whose readers are not found yet, all clients together: at most kHeldQueues times
+  // commands.queue (16 000 by default, about 19 MB), so that many participants that never read cannot each fill a
+  // queue (a client's own is commands.queue).
+  static constexpr std::size_t kHeldQueues = 16;
+  std::size_t held_ = 0;
   LogBudget slow_readers_log_{1, Clock::now()};  // "its ack reader not found": one line a second
   std::unordered_map<std::string, Clock::time_point> write_failure_logged_;  // by topic
 };

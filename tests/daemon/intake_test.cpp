@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <fstream>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -331,6 +332,33 @@ TEST_F(Server, ManyCommandWritersOfOneProcessShareOneClientsLimits) {
   EXPECT_EQ(stats->commands_accepted + stats->commands_rate_limited + stats->commands_unanswered, 100u);
   const client::Ack mine = c().call(cmd::set("damping.hinge=0"), kAnswer);  // another process: a bucket of its own
   EXPECT_TRUE(mine.accepted) << mine.reason;
+}
+
+// Commands held for clients whose ack readers are not found yet are bounded in all, not only per client: many
+// participants that never read cannot each fill a queue. Here commands.queue is 100, so the server holds 1600 at most
+// (16 queues); 20 participants with no readers send 100 each (each within its own queue), and 400 are refused for
+// rate; once the wait for their readers ends (8 s here, far longer than the sending), the 1600 held are taken.
+TEST_F(Server, CommandsHeldForClientsThatDoNotReadAreBoundedInAll) {
+  start(with_config("[commands]\nqueue = 100\nreader_wait = 8\n"));
+  std::vector<std::unique_ptr<BareSender>> senders;
+  for (int p = 0; p < 20; ++p) senders.push_back(std::make_unique<BareSender>(domain_, sim_id_));
+  std::uint64_t id = 0;
+  for (auto& bare : senders)
+    for (int k = 0; k < 100; ++k) {
+      ladder_msg_Command m = cmd::break_hinge(99);
+      transport::copy_text(m.sim_id, sim_id_);
+      transport::copy_text(m.client_id, "mute");
+      m.command_id = ++id;
+      ASSERT_GE(dds_write(bare->command_w.entity().get(), &m), 0);
+    }
+  const auto counted = c().wait_stats([](const ladder_msg_Stats& s) { return s.commands_received >= 2000; }, kAnswer);
+  ASSERT_TRUE(counted.has_value());
+  EXPECT_EQ(counted->commands_rate_limited + counted->commands_unanswered, 400u);
+  const auto taken = c().wait_stats(
+      [](const ladder_msg_Stats& s) { return s.commands_refused + s.commands_accepted >= 1600; }, Millis(20000));
+  ASSERT_TRUE(taken.has_value()) << "the held commands were not taken after the wait";
+  EXPECT_EQ(taken->commands_refused, 1600u);  // (no hinge 99)
+  EXPECT_EQ(taken->commands_rate_limited + taken->commands_unanswered, 400u);
 }
 
 // Each refusal is logged at info, but a client sending 1000 refused commands a second must not write 1000 lines a
