@@ -83,11 +83,12 @@ std::vector<double> nice_ticks(double lo, double hi, int most, bool whole) {
 }
 
 void History::add(std::uint32_t generation, double t, double energy, const std::vector<std::uint32_t>& flips) {
-  if (generation != generation_ || t < last_t_) {
+  if (runs_ == 0 || generation != generation_ || t < last_t_) {
     energy_.clear();
     flips_.clear();
     last_.clear();
     generation_ = generation;
+    ++runs_;
   }
   last_t_ = t;
   if (!std::isfinite(energy)) return;

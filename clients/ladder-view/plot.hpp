@@ -25,13 +25,15 @@ class History {
   const std::vector<Point>& energy() const { return energy_; }  // (t [s], E [J])
   const std::vector<Point>& flips() const { return flips_; }    // (t [s], hinge)
   int hinges() const { return hinges_; }
+  // How many times the history started: 1 after the first state, one more for each start again.
+  int runs() const { return runs_; }
 
  private:
   std::vector<Point> energy_, flips_;
   std::vector<std::uint32_t> last_;
   std::uint32_t generation_ = 0;
   double last_t_ = -1;
-  int hinges_ = 0;
+  int hinges_ = 0, runs_ = 0;
 };
 
 // A plot's frame: the data range and the pixel box it maps to.

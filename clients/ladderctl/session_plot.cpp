@@ -12,22 +12,11 @@ namespace ladder::ctl {
 
 namespace {
 
-// The scene generations of a run of states, counted as they change.
-struct Generations {
-  void saw(std::uint32_t g) {
-    if (count == 0 || g != last) ++count;
-    last = g;
-  }
-  int count = 0;
-  std::uint32_t last = 0;
-};
-
 // "wrote out.png (900x600 px): 5 flip-flops at hinges 1 to 5 over t = 0.000 to 4.000 s, energy -0.2787 to
 // -0.2769 J" (or why it was not written).
 // `empty_code`: the exit code when there is no state (2 for a log, bad input; 1 for a server that sent none).
-// `generations`: how many scene generations the states came from (a reset or a load starts one, and the plot with
-// it): the plot shows the last, and says so when there were more.
-int finish(const view::History& h, const PlotOptions& o, const std::string& from, int empty_code, int generations) {
+// The plot shows the last run of the history (a reset or a load starts it again), and says so when there were more.
+int finish(const view::History& h, const PlotOptions& o, const std::string& from, int empty_code) {
   if (h.energy().empty()) {
     std::cerr << "ladderctl: plot: no state in " << from << "; nothing written\n";
     return empty_code;
@@ -47,8 +36,8 @@ int finish(const view::History& h, const PlotOptions& o, const std::string& from
               h.flips().size());
   if (!h.flips().empty()) std::printf(" at hinges %.0f to %.0f", first, last);
   std::printf(" over t = %.3f to %.3f s, energy %.6g to %.6g J", h.energy().front().x, h.energy().back().x, lo, hi);
-  if (generations > 1)
-    std::printf(" (the last of %d scene generations: each reset or load starts the plot again)", generations);
+  if (h.runs() > 1)
+    std::printf(" (the last of %d scene generations: each reset or load starts the plot again)", h.runs());
   std::printf("\n");
   return 0;
 }
@@ -57,13 +46,11 @@ int finish(const view::History& h, const PlotOptions& o, const std::string& from
 
 int plot_log(const PlotOptions& o) {
   view::History h;
-  Generations generations;
   try {
     transport::LogReader reader(o.log);
     while (const auto e = reader.next()) {
       if (e->channel != transport::kStateChannel) continue;
       const auto s = reader.decode<ladderlcm::state_t>(*e);
-      generations.saw(static_cast<std::uint32_t>(s.generation));
       std::vector<std::uint32_t> flips(s.flips.begin(), s.flips.end());
       h.add(static_cast<std::uint32_t>(s.generation), s.sim_time, s.energy, flips);
     }
@@ -72,26 +59,24 @@ int plot_log(const PlotOptions& o) {
     std::cerr << "ladderctl: " << e.what() << "\n";
     return 2;
   }
-  return finish(h, o, o.log, 2, generations.count);
+  return finish(h, o, o.log, 2);
 }
 
 int plot_live(client::Client& c, const PlotOptions& o) {
   view::History h;
-  Generations generations;
   std::uint64_t seen = 0;
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.seconds);
   while (std::chrono::steady_clock::now() < end) {
     const auto s = c.wait_state([&](const client::State& st) { return st.seq > seen; }, client::Millis(100));
     if (!s || s->seq <= seen) continue;
     seen = s->seq;
-    generations.saw(s->generation);
     std::vector<std::uint32_t> flips;
     for (const client::Hinge& k : s->hinges) flips.push_back(k.flips);
     h.add(s->generation, s->sim_time, s->energy, flips);
   }
   char from[64];
   std::snprintf(from, sizeof from, "%g s of the running server", o.seconds);
-  return finish(h, o, from, 1, generations.count);
+  return finish(h, o, from, 1);
 }
 
 }  // namespace ladder::ctl

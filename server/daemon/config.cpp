@@ -198,8 +198,7 @@ void load_config(const std::string& path, DaemonConfig& config) {
   const fs::path dir = fs::path(path).parent_path();
   DaemonConfig c = config;
   for (auto&& [table_name, table_node] : root) {
-    if (scene::is_scene_table(table_name.str()) && table_name.str() != "server" && table_name.str() != "commands" &&
-        table_name.str() != "log")
+    if (scene::is_scene_table(table_name.str()))
       throw ConfigError(where(path, table_node.source()) + ": [" + std::string(table_name.str()) +
                         "] is a table of a scene file, not of a configuration file (which has [server], [commands] "
                         "and [log]): give a scene with --scene FILE, or as server.scene in the configuration");
@@ -211,15 +210,15 @@ void load_config(const std::string& path, DaemonConfig& config) {
       const std::string name = std::string(table_name.str()) + "." + std::string(key.str());
       const auto it = std::find_if(keys().begin(), keys().end(), [&](const Key& k) { return k.name == name; });
       if (it == keys().end()) {
-        std::string known, nearest;
-        std::size_t nearest_d = 3;  // at most two edits away
+        std::vector<std::string> names;
+        std::string known;
         for (const Key& k : keys()) {
-          known += (known.empty() ? "" : ", ") + std::string(k.name);
-          if (const std::size_t d = edit_distance_below(name, k.name, nearest_d); d < nearest_d)
-            nearest = k.name, nearest_d = d;
+          names.emplace_back(k.name);
+          known += (known.empty() ? "" : ", ") + names.back();
         }
+        const std::string best = nearest(name, names);
         throw ConfigError(where(path, key.source()) + ": unknown key '" + name + "'" +
-                          (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") + "; the keys: " + known);
+                          (best.empty() ? "" : " (did you mean '" + best + "'?)") + "; the keys: " + known);
       }
       try {
         it->read(node, c, dir);

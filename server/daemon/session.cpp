@@ -253,16 +253,19 @@ std::optional<double> toml_number(const std::string& text) {
 // The server's own live keys, which set_param() takes before a setting reaches the scene.
 constexpr const char* kServerLiveKeys = "server.real_time_factor, server.publish_rate";
 
-// How much of a long scene name or setting a refusal quotes.
-constexpr std::size_t kShownName = 80;
+namespace {
+// A client's text as a refusal quotes it: a setting or a scene name of up to 1024 characters would fill the 512 of an
+// answer's reason before the reason came, so a long one is named by its first 80 characters and its length.
+constexpr std::size_t kShown = 80;
+std::string quoted(const std::string& text) {
+  return text.size() <= kShown + 20 ? text
+                                    : std::string(first_characters(text, kShown)) + "... (" +
+                                          std::to_string(text.size()) + " characters)";
+}
+}  // namespace
 
 Outcome Session::set_param(const std::string& full) {
-  // A refusal names the setting first; one of up to 1024 characters would fill the 512 of an answer's reason before
-  // the reason came: a long one is named by its start and length.
-  constexpr std::size_t kShown = kShownName;
-  const std::string setting = full.size() <= kShown + 20
-                                  ? full
-                                  : full.substr(0, kShown) + "... (" + std::to_string(full.size()) + " characters)";
+  const std::string setting = quoted(full);  // a refusal names the setting first
   const size_t eq = full.find('=');
   const std::string key = full.substr(0, eq);
   if (key.starts_with("server.")) {
@@ -324,12 +327,9 @@ std::string scene_names(const std::string& dir) {
 Outcome Session::load(const std::string& name) {
   namespace fs = std::filesystem;
   if (name.empty()) return {false, "load: give a scene name, e.g. classic"};
-  // A name of up to 1024 characters would fill the 512 of an answer's reason before the reason and the list of
-  // scenes came: a long one is named by its start and length, as set_param() names a setting.
-  if (name.size() > kShownName + 20)
-    return {false, "no scene '" + std::string(first_characters(name, kShownName)) + "... (" +
-                       std::to_string(name.size()) +
-                       " characters)' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
+  if (quoted(name) != name)  // (a long name is no scene's: said before the reason and the list of scenes are cut)
+    return {false,
+            "no scene '" + quoted(name) + "' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
   if (name.find('/') != std::string::npos || name.find('\\') != std::string::npos || name.starts_with("."))
     return {false, "not permitted: scenes are loaded by name from the server's scene directory " + scenes_dir_};
   const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");

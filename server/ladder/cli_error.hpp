@@ -16,18 +16,6 @@
 
 namespace ladder {
 
-// The name of `names` nearest to `word` (one it starts, or at most two edits away and fewer than the word has
-// letters), or "".
-inline std::string nearest(const std::string& word, const std::vector<std::string>& names) {
-  std::string best;
-  std::size_t best_d = 3;
-  for (const std::string& n : names) {
-    const std::size_t d = n.starts_with(word) ? 0 : edit_distance_below(word, n, best_d);
-    if (d < best_d && d < word.size()) best = n, best_d = d;
-  }
-  return best;
-}
-
 // Reports a parse error of `app` on standard error as "PROGRAM: ..." (no prefix when `program` is empty: the
 // prompt's commands) and returns the exit code: 0 for --help and --version (CLI11 prints those), else 2. Words the
 // command line did not expect (CLI11's "The following arguments were not expected: 228 --domian", in reverse order

@@ -38,6 +38,18 @@ inline std::size_t edit_distance_below(std::string_view a, std::string_view b, s
   return gap >= limit ? gap : edit_distance(a, b);
 }
 
+// The name of `names` nearest to `word` (one it starts, or at most two edits away and fewer than the word has
+// letters), or "".
+inline std::string nearest(const std::string& word, const std::vector<std::string>& names) {
+  std::string best;
+  std::size_t best_d = 3;
+  for (const std::string& n : names) {
+    const std::size_t d = n.starts_with(word) ? 0 : edit_distance_below(word, n, best_d);
+    if (d < best_d && d < word.size()) best = n, best_d = d;
+  }
+  return best;
+}
+
 // CLI11's message for an option given more often than it is taken, "--domain: At Most 1 required but received 2",
 // as "--domain is given 2 times; give it once". Any other message comes back as it is.
 inline std::string repeated_option(std::string_view message) {
