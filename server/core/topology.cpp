@@ -469,6 +469,6 @@ void World::order_rows(const std::vector<Body>& bodies, std::vector<Row>& rows) 
   rows = std::move(out);
 }
 
-std::vector<int> World::body_parts(int body) const { return body_parts_.at(body); }
+const std::vector<int>& World::body_parts(int body) const { return body_parts_.at(body); }
 
 }  // namespace ladder::core

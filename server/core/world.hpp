@@ -293,7 +293,7 @@ class World {
   int body_of_part(int part) const { return parts_[part].body; }
   int part_of_particle(int p) const { return particles_[p].part; }
   Vec2 particle_local(int p) const { return particles_[p].local; }  // in the part frame, from the part COM
-  std::vector<int> body_parts(int body) const;
+  const std::vector<int>& body_parts(int body) const;  // (valid until the structure changes)
   Vec2 particle_position(int p) const;
   Vec2 particle_velocity(int p) const;
   Vec2 part_position(int part) const;  // centre of mass

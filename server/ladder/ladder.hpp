@@ -190,8 +190,11 @@ class Ladder {
   // Every loss since construction, and the part of it up to the last flip-flop with the number of flip-flops (each
   // flip-flop's event says what was lost since the one before).
   const Losses& losses() const { return losses_; }
-  // The work put into the blocks since construction [J]: the hand's drive, pushes and grips over the steps, and
-  // pokes. So energy at the start + work_put_in() - losses().total() is the energy now, to the ledger's rounding.
+  // The work put into the blocks since construction [J]: the hand's drive (through the hinge it holds and on the
+  // blocks locked to the held block, which it moves), pushes and grips over the steps, and pokes; and the energy of
+  // the top block when the hand lets it go (`break 0`), less its potential energy when the hand takes it back
+  // (`join 0`; its kinetic energy is the join's loss). So energy at the start + work_put_in() - losses().total() is
+  // the energy now, to the ledger's rounding.
   double work_put_in() const { return work_put_in_; }
   double lost_by_last_flip() const { return lost_by_last_flip_; }
   int flip_flops() const { return flip_flops_; }
@@ -222,14 +225,23 @@ class Ladder {
   std::string lock_moment(double moment) const;
   void released(int k);
   bool held_again(int k, double before, const char* detail);
-  bool take_back_release(int k);
+  bool take_back_release(int k, double removed);
   void contact_moments(std::vector<double>& moments, int meeting = -1);
   double contact_moment(const core::World& world, int k, bool other_end = false) const;
   bool folded(int k) const;   // hinge k's pair is nearer face to face than straight
   void move_hinge(int k);     // the hinge to the blocks' other ends (Algorithm 2, lines 1-3)
   double blocks_kinetic() const;
   double block_kinetic(int i) const;  // block i's kinetic energy, from its part's motion [J]
-  void book_motion(const core::Energy& e0);
+  double block_potential(int i) const;  // block i's potential energy [J]
+  // The energy of the blocks locked to the held block [J] (energy() counts them, World::energy() does not).
+  double hand_blocks_energy() const;
+  // What a piece of time starts with, for the ledger (book_motion).
+  struct PieceStart {
+    core::Energy world;  // the dynamic bodies'
+    double hand_blocks = 0;  // hand_blocks_energy()
+  };
+  PieceStart piece_start() const { return {world_.energy(), hand_blocks_energy()}; }
+  void book_motion(const PieceStart& start);
   void check_unlocks();
   void emit(EventKind kind, int k, double energy, std::string detail = {});
   void advance_by(double h);  // advance() without the grips' forces and the adaptive walk

@@ -150,12 +150,14 @@ TEST(Rolling, MidpointLedgerClosesWithADrivenRollingHinge) {
 namespace ladder::core {
 namespace {
 
-// The dip of a toppling block's hanging point (docs/model.md section 9, "The well"): block B turns over about its
+// The dip of what hangs below a toppling block (docs/model.md section 9, "The well"): block B turns over about its
 // rolling contact with the block beside it, its bottom end's two arcs carrying that contact (side s) and the next
 // hinge (side -s), and a block C hangs from the next hinge. B is driven (kinematic) as the rolling contact makes it
 // move: turned by phi, its arc centre kR from the still neighbour's arc rolled around it by phi / 2. C is dynamic and
-// damped to rest at phi = 0 and again at phi = 90 degrees; the contact point of hinge B-C then drops by the
-// predicted dip, found from the geometry and C's equilibrium (its centre below the contact).
+// damped to rest at phi = 0 and again at phi = 90 degrees; C's centre (the weight, whose potential energy is the
+// well) and the contact point of hinge B-C then drop by the predicted dips, found from the geometry and C's
+// equilibrium (its centre below the contact). The contact is not a point of C: it moves around C's arc as the pair
+// rolls, so it drops further than C does.
 struct Topple {
   double r, T = kW, L = kL;
   // B's pose at phi: its bottom-right arc centre rolled from (T/2 - r, r) around the neighbour's, at (T/2 + r, r).
@@ -189,9 +191,20 @@ struct Topple {
   double predicted_dip(double phi) const {
     return contact(0, equilibrium(0)).y() - contact(phi, equilibrium(phi)).y();
   }
+  // C's centre's drop, with C at rest (theta = its equilibrium) or held vertical (theta = 0).
+  double centre_dip(double phi, bool at_rest) const {
+    Vec2 c0, c1;
+    contact(0, at_rest ? equilibrium(0) : 0.0, &c0);
+    contact(phi, at_rest ? equilibrium(phi) : 0.0, &c1);
+    return c0.y() - c1.y();
+  }
 };
 
-double measured_dip(double r, double phi_end) {
+struct Dips {
+  double contact, centre;  // [m]
+};
+
+Dips measured_dip(double r, double phi_end) {
   const Topple g{r};
   Options o;
   o.linear_damping = 40;
@@ -226,21 +239,30 @@ double measured_dip(double r, double phi_end) {
                   world.particle_position(world.first_particle(pc) + 3)).y();
   };
   for (int i = 0; i < 2000; ++i) world.step(1e-3);
-  const double y0 = contact_y();
+  const double y0 = contact_y(), c0 = world.part_position(pc).y();
   for (int i = 0; i < 8000; ++i) world.step(1e-3);
   EXPECT_LT(world.kinetic_energy(), 1e-15) << "not at rest";
-  return y0 - contact_y();
+  return {y0 - contact_y(), c0 - world.part_position(pc).y()};
 }
 
 TEST(Rolling, ToppleDipsAsTheGeometryPredicts) {
+  constexpr double kQuarter = std::numbers::pi / 2;
   for (const double r : {0.0, 0.0025, kW / 2}) {
     const Topple g{r};
-    const double predicted = g.predicted_dip(std::numbers::pi / 2);
-    EXPECT_NEAR(measured_dip(r, std::numbers::pi / 2), predicted, 1e-9) << "r = " << r;
+    const double predicted = g.predicted_dip(kQuarter), centre = g.centre_dip(kQuarter, true);
+    const Dips measured = measured_dip(r, kQuarter);
+    EXPECT_NEAR(measured.contact, predicted, 1e-9) << "r = " << r;
+    EXPECT_NEAR(measured.centre, centre, 1e-9) << "r = " << r;
+    // With C held vertical (a heavy chain below), the closed form: T - (4 - 2 sqrt 2) r at 90 degrees (the corner
+    // hinge's T when r = 0, 0.414 T for fully rounded ends), and nothing at the end of the topple.
+    EXPECT_NEAR(g.centre_dip(kQuarter, false), kW - (4 - 2 * std::numbers::sqrt2) * r, 1e-12) << "r = " << r;
+    EXPECT_NEAR(g.centre_dip(2 * kQuarter, false), 0.0, 1e-12) << "r = " << r;
     if (r == 0) {
       EXPECT_NEAR(predicted, kW, 1e-12);  // the corner hinge: the other corner drops by the thickness
     }
-    std::printf("r = %.4f m: dip at 90 degrees %.9f m (%.4f of the thickness)\n", r, predicted, predicted / kW);
+    std::printf("r = %.4f m: at 90 degrees the contact dips %.9f m (%.4f of the thickness), C's centre %.9f m "
+                "(%.4f; %.4f held vertical)\n",
+                r, predicted, predicted / kW, centre, centre / kW, g.centre_dip(kQuarter, false) / kW);
   }
 }
 
