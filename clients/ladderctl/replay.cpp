@@ -135,7 +135,9 @@ using Clock = std::chrono::steady_clock;
 
 // Paces the replay by the events' recorded wall times. A pause of more than kLongPause in the recording (a server
 // left paused, or a forged timestamp 2^62 us ahead) is played as kLongPause: a replay never stalls on one gap.
-// Times that go back a little (states and the other records are stamped on different paths) wait for nothing.
+// Times that go back a little (states and the other records are stamped on different paths) wait for nothing; times
+// that go back by more than kLongPause (the recording host's clock stepped back, or the events after a forged
+// timestamp ahead) are a new start: the replay is paced from them on, as before the step.
 class Pacer {
  public:
   static constexpr double kLongPause = 10e6;  // [us of recorded time]
@@ -144,6 +146,10 @@ class Pacer {
   void wait(std::int64_t utime, const std::atomic<bool>& stop) {
     const auto t = static_cast<double>(utime);  // in doubles: no overflow on any timestamp
     if (!started_) started_ = true, start_ = Clock::now(), latest_ = t;
+    if (latest_ - t > kLongPause) {  // (the pacing would otherwise wait for nothing from here to the end)
+      ++stepped_back_;
+      latest_ = t;
+    }
     double behind = 0;  // how far this event lies before the latest one [us]
     if (t > latest_) {
       played_ += std::min(t - latest_, kLongPause);
@@ -158,13 +164,14 @@ class Pacer {
       std::this_thread::sleep_for(std::min<Clock::duration>(due - Clock::now(), std::chrono::milliseconds(50)));
   }
   std::uint64_t shortened() const { return shortened_; }
+  std::uint64_t stepped_back() const { return stepped_back_; }
 
  private:
   double speed_;
   bool started_ = false;
   Clock::time_point start_{};
   double latest_ = 0, played_ = 0;  // [us] the latest timestamp so far; recorded time played, pauses shortened
-  std::uint64_t shortened_ = 0;
+  std::uint64_t shortened_ = 0, stepped_back_ = 0;
 };
 
 }  // namespace
@@ -262,6 +269,10 @@ int replay(const ReplayOptions& o) {
   if (pacer.shortened())
     std::cerr << "ladderctl: " << o.log << ": " << pacer.shortened() << " pause(s) longer than "
               << Pacer::kLongPause / 1e6 << " s in the recording played as " << Pacer::kLongPause / 1e6 << " s\n";
+  if (pacer.stepped_back())
+    std::cerr << "ladderctl: " << o.log << ": the recorded times went back by more than " << Pacer::kLongPause / 1e6
+              << " s " << pacer.stepped_back() << " time(s) (a clock step, or a forged time before it); paced on "
+              << "from each\n";
   if (bad_states)
     std::cerr << "ladderctl: " << o.log << ": skipped " << bad_states
               << " state(s) with a hinge status other than 0, 1 or 2 (hinged, locked, broken)\n";

@@ -250,6 +250,7 @@ SessionLog read_events(transport::LogReader& reader) {
     }
   }
   log.damage = reader.damage();
+  log.damage_after = reader.damage_after();
   if (log.scenes.empty())
     throw std::runtime_error(log.path + ": no scene record" +
                              (log.damage.empty() ? std::string(" (not a ladderd session log?)") : ": " + log.damage));
@@ -276,6 +277,14 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
   // log does not say, so a re-run holds them to the widest any configuration allows: a logged poke of 1e300 N s,
   // which no ladderd accepts, is refused here rather than made into a state nobody can publish.
   session = std::make_unique<Session>(scene_of(log.scenes.front()), "", kWidestLimits, Rates{});
+  // The dt each generation's scene records say it ran at (a live setting can change it, and the server then writes
+  // a record). The checks of a log's steps and times take them on its word, so the re-run holds its scene to them:
+  // a record that claimed dt = 1e-7 s for a scene that steps 1e-3 s let a few bytes of log order 2e7 steps.
+  std::map<std::int32_t, std::pair<double, double>> dt_range;
+  for (const ladderlcm::scene_t& sc : log.scenes) {
+    const auto [it, fresh] = dt_range.try_emplace(sc.generation, sc.dt, sc.dt);
+    it->second = {std::min(it->second.first, sc.dt), std::max(it->second.second, sc.dt)};
+  }
   std::size_t next_command = 0;
   std::int64_t applied = 0;  // commands taken, as the server counted them
 
@@ -325,6 +334,17 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       // As the server does: paused, a step is one that a step command ordered (so that a resumed session keeps
       // only the ordered steps not yet taken where the log ends).
       if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
+      if (const auto range = dt_range.find(gen); range != dt_range.end()) {
+        const double dt = session->sim().dt();
+        if (!(dt >= range->second.first && dt <= range->second.second)) {
+          char buf[200];
+          std::snprintf(buf, sizeof buf, "the scene records of generation %d say dt = %g .. %g s, but its scene steps "
+                        "%g s (at step %lld)", gen, range->second.first, range->second.second, dt,
+                        static_cast<long long>(step));
+          failed_here = buf;
+          return false;
+        }
+      }
       try {
         session->step();
       } catch (const std::runtime_error& e) {

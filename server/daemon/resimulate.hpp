@@ -38,6 +38,7 @@ struct SessionLog {
   std::vector<Failure> failures;  // in log order
   std::uint64_t events = 0;                        // event records (not needed to re-run)
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
+  std::size_t damage_after = 0;                    // bytes of events after the damage (0: the log is cut off there)
 };
 
 // Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the

@@ -11,6 +11,7 @@
 #include "daemon/limits.hpp"
 #include "scene/simulation.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -44,6 +45,8 @@ class Session {
   // Steps ordered by a step command and not yet taken (they run while paused).
   std::uint64_t pending_steps() const { return pending_steps_; }
   void take_pending_step() { --pending_steps_; }
+  // At most n pending steps are kept (a resumed log's, whose step commands the re-run took within the widest limits).
+  void limit_pending_steps(std::uint64_t n) { pending_steps_ = std::min(pending_steps_, n); }
   void pause() { paused_ = true; }
   // Marks the session failed as a failed step does (paused; a reset restores the scene's settings): for a state
   // that the server finds non-finite after a step that passed.

@@ -114,6 +114,11 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
     throw std::runtime_error("--record with --resume is not supported: a new log would start mid-session; "
                              "resume without --record, or record a new session");
   const SessionLog log = read_session_log(path);
+  // A cut-off end is what a killed server leaves, and its last command acknowledged is before it; events after
+  // damage in the middle would be dropped by a resume from before it (commands acknowledged among them, perhaps).
+  if (log.damage_after > 0)
+    throw std::runtime_error(path + ": " + log.damage + "; a resume from before the damage would drop them: repair "
+                             "the log, or resume from a copy cut at the damage if what follows may be lost");
   if (!log.damage.empty())
     spdlog::warn("{}: {}; resuming from what came before", printable(path), printable(log.damage));
   if (log.checkpoints.empty()) throw std::runtime_error(path + ": no checkpoint to resume from");
@@ -133,6 +138,15 @@ std::unique_ptr<Session> resumed_session(const std::string& path, const DaemonCo
     throw std::runtime_error(path + ": the session ends in a state that holds a non-finite number (" + bad +
                              "), which no server can publish; start the scene anew");
   session->pause();
+  // The step commands still owed where the log ends go on, but at most one step command's worth of this server's
+  // (commands.max_step_count): the re-run took them within the widest limits any server allows (1e9 steps), and a
+  // resumed server runs them flat out, as a live step command.
+  if (const std::uint64_t most = config.server.limits.max_step_count; session->pending_steps() > most) {
+    spdlog::warn("{}: {} ordered steps were still to be taken where the log ends; this server takes at most {} "
+                 "(commands.max_step_count), and drops the rest",
+                 printable(path), session->pending_steps(), most);
+    session->limit_pending_steps(most);
+  }
   session->sim().take_events();  // they happened before; the log has them
   session->sim().take_refusals();
   const std::uint64_t refused = std::min(r.refused, r.last_command_seq);
@@ -159,7 +173,9 @@ int run_resimulation(const std::string& path, bool progress) {
   std::unique_ptr<Session> session;
   Resimulation r;
   try {
-    r = resimulate(log, session, Until::kLastMark, [&](std::uint64_t steps, std::uint64_t states) {
+    // To the last command, as --resume goes: a command after the last state that the re-run refuses (or cannot
+    // reach) is a log that --resume refuses, and so a difference here too.
+    r = resimulate(log, session, Until::kLastCommand, [&](std::uint64_t steps, std::uint64_t states) {
       if (progress) spdlog::info("... {} steps, {} states identical so far", steps, states);
     });
   } catch (const std::exception& e) {
@@ -169,6 +185,10 @@ int run_resimulation(const std::string& path, bool progress) {
     return exit_with(1, fmt::format("differs: {} ({} states and {} checkpoints identical before it)", r.difference,
                                     r.states, r.checkpoints));
   }
+  if (log.damage_after > 0)
+    return exit_with(1, fmt::format("{} states and {} checkpoints identical up to the damage, but the log is damaged "
+                                    "in the middle: what follows it was not re-run ({})",
+                                    r.states, r.checkpoints, printable(log.damage)));
   spdlog::info("identical to the last bit: {} states and {} checkpoints compared over {} steps ({} commands{}), up "
                "to t = {:.6f} s",
                r.states, r.checkpoints, r.steps, r.commands,

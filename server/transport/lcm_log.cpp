@@ -127,11 +127,31 @@ std::uint64_t big_endian(const std::uint8_t* p, int n) {
 }
 }  // namespace
 
+// The first place at or after `from` where a whole event header with plausible lengths starts (a sync word), or the
+// end of the file.
+std::size_t LogReader::next_event_start(std::size_t from) const {
+  constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
+  for (std::size_t i = from; i + kHeader <= bytes_.size(); ++i) {
+    const std::uint8_t* h = bytes_.data() + i;
+    if (h[0] != 0xED || big_endian(h, 4) != 0xEDA1DA01u) continue;
+    const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
+    if (channel_len > 0 && channel_len < 1000 && bytes_.size() - i - kHeader >= channel_len + data_len) return i;
+  }
+  return bytes_.size();
+}
+
 std::optional<LogReader::Event> LogReader::next() {
   constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
   if (!damage_.empty() || at_ == bytes_.size()) return std::nullopt;
   const auto stop = [&](const std::string& why) {
     damage_ = why + " at byte " + std::to_string(at_) + ", after " + std::to_string(count_) + " complete events";
+    // A log cut off (a server killed while writing) ends in its damage; one damaged in the middle has events after
+    // it, which a reader that stops here does not see.
+    if (const std::size_t later = next_event_start(at_ + 1); later < bytes_.size()) {
+      damage_after_ = bytes_.size() - later;
+      damage_ += ", and the log goes on: " + std::to_string(damage_after_) + " bytes of events from byte " +
+                 std::to_string(later) + " on are not read (the log is damaged in the middle, not cut off)";
+    }
     return std::nullopt;
   };
   if (bytes_.size() - at_ < kHeader) return stop("the log is cut off in an event header");

@@ -114,6 +114,8 @@ class LogReader {
   std::optional<Event> next();
   // Empty, or what was wrong where reading stopped ("cut off in event 12 at byte 4096", ...).
   const std::string& damage() const { return damage_; }
+  // The bytes of events after the damage (0 when the log is cut off there, as a killed server leaves it).
+  std::size_t damage_after() const { return damage_after_; }
   // Decodes an event's data; throws std::runtime_error naming the file, the event and what is wrong when it does
   // not decode or holds an impossible value.
   template <class T>
@@ -129,12 +131,14 @@ class LogReader {
 
  private:
   void check_start() const;
+  std::size_t next_event_start(std::size_t from) const;
 
   std::string path_;
   std::vector<std::uint8_t> bytes_;  // the whole file (logs are read once, front to back)
   std::size_t at_ = 0;
   std::uint64_t count_ = 0;
   std::string damage_;
+  std::size_t damage_after_ = 0;
 };
 
 }  // namespace ladder::transport

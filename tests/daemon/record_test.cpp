@@ -14,11 +14,14 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <cstring>
 #include <functional>
+#include <optional>
 #include <random>
+#include <thread>
 #include <tuple>
 
 namespace ladder::test {
@@ -419,6 +422,37 @@ TEST_F(Record, AForgedTimestampCannotStallAReplay) {
   EXPECT_NE(r.output.find("replayed " + std::to_string(states) + " states"), std::string::npos) << r.output;
 }
 
+// The recording host's clock stepped back (an hour, as an NTP correction can) between two states: the replay is
+// paced from there on as before the step. (The old replay took every event after it as lying before the latest one
+// and played the rest of the log at once: 2.5 s of recording in no time.)
+TEST_F(Record, AReplayKeepsItsPaceAfterTheRecordedClockStepsBack) {
+  start({"--record", log_});
+  run_until(2.5);
+  ASSERT_EQ(stop_server(SIGTERM), 0);
+  transport::LogReader in(log_);
+  const std::string bent = (dir_ / "stepped.lcmlog").string();
+  std::size_t states = 0;
+  std::int64_t stepped_at = 0, last = 0;
+  {
+    transport::LogWriter out(bent);
+    constexpr std::int64_t kHour = 3'600'000'000;  // [us]
+    while (auto e = in.next()) {
+      if (e->channel == transport::kStateChannel && ++states == 3) stepped_at = e->utime;
+      last = e->utime;
+      out.write_bytes(e->channel, stepped_at != 0 ? e->utime - kHour : e->utime, e->data, false);
+    }
+  }
+  const double after = 1e-6 * static_cast<double>(last - stepped_at);  // [s] of recording after the step
+  ASSERT_GT(after, 2.0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Result r = shell("timeout -s KILL 30 " + kLadderctl + " replay " + bent + " --as " + sim_id_ +
+                         "-replay --domain " + std::to_string(domain_));
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("the recorded times went back by more than 10 s 1 time(s)"), std::string::npos) << r.output;
+  EXPECT_GE(took, 0.95 * after) << r.output;  // (a lower bound: a slow machine only adds to it)
+}
+
 // A recorded session replayed to a real ladder-view draws the same picture as the live server did at the same
 // sim time (pixel for pixel below the heading line, which names the sim id).
 TEST_F(Record, ReplayDrawsWhatTheLiveServerDrew) { replay_draws_what_the_live_server_drew({}); }
@@ -574,8 +608,10 @@ TEST_F(Record, CorruptOrTruncatedLogsAreRefusedOrReadUpToTheDamage) {
       EXPECT_NE(r.output.find(bad), std::string::npos) << r.output;
       continue;
     }
-    if (r.code == 1) {
-      EXPECT_NE(r.output.find("differs: "), std::string::npos) << r.output;
+    if (r.code == 1) {  // a difference, or damage in the middle of the log (the events after it not re-run)
+      EXPECT_TRUE(r.output.find("differs: ") != std::string::npos ||
+                  r.output.find("the log is damaged in the middle") != std::string::npos)
+          << r.output;
     }
     if (r.output.find("complete events") != std::string::npos) ++read_to_damage;  // "... after N complete events"
   }
@@ -875,6 +911,126 @@ TEST_F(Record, AResumedLogIsHeldToTheWidestLimitsAConfigurationAllows) {
                                 "N s is beyond the limit of 1e+06 N s (commands.max_impulse)"),
             std::string::npos)
       << r.output;
+}
+
+// A log is held to what its scene does, not only to what its records say (four findings of a hostile-log probe).
+TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
+  const std::string d = std::to_string(domain_);
+  const auto rewrite = [&](const std::string& to, auto&& bend) {
+    transport::LogReader in(log_);
+    transport::LogWriter out(to);
+    while (auto e = in.next()) bend(in, *e, out);
+  };
+  // 3 (first: its own recording, which ends paused). The step command made 1e9 steps (the most the widest limits
+  // allow), of which the run took 5: a resumed server owes the rest, but takes at most its own
+  // commands.max_step_count (100 000 by default). (Before: it ran them all flat out, "paused", for hours.)
+  start({"--record", log_});
+  run_until(0.1);
+  accepted(cmd::pause());
+  accepted(cmd::step(5));
+  ASSERT_TRUE(client_->wait_state([&](const client::State& s) { return s.commands_applied >= applied_; }, kAnswer));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // (the 5 steps taken, their state logged)
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+  const std::string many = (dir_ / "many-steps.lcmlog").string();
+  rewrite(many, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
+    if (e.channel == transport::kCommandChannel) {
+      auto c = in.decode<ladderlcm::command_t>(e);
+      if (c.kind == ladder_msg_STEP) c.count = 1'000'000'000;
+      return out.write(e.channel.c_str(), e.utime, c, false);
+    }
+    out.write_bytes(e.channel, e.utime, e.data, false);
+  });
+  Result r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + many);
+  EXPECT_EQ(r.code, 0) << r.output;  // (the re-run matches the log: it takes the steps the log shows)
+  r = shell("timeout --preserve-status -s INT 3 " + kLadderd + " --resume " + many + " --domain " + d +
+            " --sim-id " + sim_id_ + "-many");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("999999995 ordered steps were still to be taken where the log ends; this server takes at "
+                          "most 100000 (commands.max_step_count), and drops the rest"),
+            std::string::npos)
+      << r.output;
+
+  start({"--record", log_});
+  accepted(cmd::tip());
+  run_until(0.3);
+  ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
+
+  // 1. Its scene record says dt = 1e-7 s (and its states' steps agree): the checks take the step bound from that dt
+  // (2e7 steps a checkpoint), while the scene the text makes steps 1 ms. The re-run stops at once, saying so.
+  // (Before: it stepped 1 ms steps toward step 3e6 and more, an hour of CPU for a 1000-block scene.)
+  const std::string tiny = (dir_ / "tiny-dt.lcmlog").string();
+  rewrite(tiny, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
+    if (e.channel == transport::kSceneChannel) {
+      auto sc = in.decode<ladderlcm::scene_t>(e);
+      sc.dt = 1e-7;
+      return out.write(e.channel.c_str(), e.utime, sc, false);
+    }
+    if (e.channel == transport::kStateChannel) {
+      auto st = in.decode<ladderlcm::state_t>(e);
+      st.step = std::llround(st.sim_time / 1e-7);
+      return out.write(e.channel.c_str(), e.utime, st, false);
+    }
+    if (e.channel == transport::kCommandChannel) {
+      auto c = in.decode<ladderlcm::command_t>(e);
+      c.step = std::llround(static_cast<double>(c.step) * 1e-3 / 1e-7);
+      return out.write(e.channel.c_str(), e.utime, c, false);
+    }
+    out.write_bytes(e.channel, e.utime, e.data, false);
+  });
+  r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + tiny);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("the scene records of generation 0 say dt = 1e-07 .. 1e-07 s, but its scene steps 0.001 s"),
+            std::string::npos)
+      << r.output;
+
+  // 2. One event in the middle damaged (its sync word), intact events after it: --resume refuses to go back to
+  // before it, which would drop what follows (acknowledged commands perhaps); --resimulate says the rest was not
+  // re-run. (Before: resumed from before the damage, and "identical", with exit 0.)
+  std::ifstream in(log_, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t middle = bytes.find("\xED\xA1\xDA\x01", bytes.size() / 2);
+  ASSERT_NE(middle, std::string::npos);
+  bytes[middle] = 'X';
+  const std::string damaged = (dir_ / "damaged.lcmlog").string();
+  std::ofstream(damaged, std::ios::binary | std::ios::trunc) << bytes;
+  r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + damaged);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("no sync word where an event should start at byte " + std::to_string(middle)),
+            std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("the log is damaged in the middle, not cut off"), std::string::npos) << r.output;
+  r = shell("timeout -s KILL 20 " + kLadderd + " --resume " + damaged + " --domain " + d + " --sim-id " + sim_id_ +
+            "-damaged");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("a resume from before the damage would drop them"), std::string::npos) << r.output;
+
+  // 4. A command after the last state that the re-run refuses (a poke of block 99 of 6): --resume refuses the log,
+  // and so does --resimulate now. (Before: "identical", exit 0, as it stopped at the last state.)
+  const std::string late = (dir_ / "late-poke.lcmlog").string();
+  {
+    transport::LogReader in(log_);
+    transport::LogWriter out(late);
+    std::optional<ladderlcm::command_t> last;
+    std::int64_t last_step = 0;
+    while (auto e = in.next()) {
+      if (e->channel == transport::kCommandChannel) last = in.decode<ladderlcm::command_t>(*e);
+      if (e->channel == transport::kStateChannel) last_step = in.decode<ladderlcm::state_t>(*e).step;
+      out.write_bytes(e->channel, e->utime, e->data, false);
+    }
+    ASSERT_TRUE(last.has_value());
+    ladderlcm::command_t poke = *last;
+    poke.command_seq = last->command_seq + 1;
+    poke.command_id = last->command_id + 1;
+    poke.kind = ladder_msg_POKE;
+    poke.block = 99;
+    poke.a = 0.001;
+    poke.step = last_step + 1;
+    poke.accepted = true;
+    poke.reason = "";
+    out.write(transport::kCommandChannel, last->utime, poke, false);
+  }
+  r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + late);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("(poke), accepted live, is refused in the re-run"), std::string::npos) << r.output;
 }
 
 }  // namespace
