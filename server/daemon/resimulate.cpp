@@ -24,7 +24,14 @@ using transport::copy_text;
 // The scene a record describes, made again from its text; its states were checked against its `blocks`, so the
 // text must make that many.
 scene::Scene scene_of(const ladderlcm::scene_t& s) {
-  scene::Scene sc = scene::remake_scene(s.toml, s.source, s.overrides, s.clear_timeline);
+  scene::Scene sc;
+  try {
+    sc = scene::remake_scene(s.toml, s.source, s.overrides, s.clear_timeline);
+  } catch (const std::exception& e) {  // (its place is in the text the log holds, which came from that source)
+    throw std::runtime_error("the scene record of generation " + std::to_string(s.generation) +
+                             " holds a scene text (recorded from " + s.source + ") that does not make a scene: " +
+                             e.what());
+  }
   sc.name = s.name;
   if (sc.ladder.blocks != s.blocks)
     throw std::runtime_error("the scene record of generation " + std::to_string(s.generation) + " says " +
@@ -416,7 +423,8 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       } catch (const std::runtime_error&) {  // as it did live: the session paused itself
       }
     } else {
-      if (non_finite_in(*session).empty()) return "the state at " + where + " was not finite live, and is in the re-run";
+      if (non_finite_in(*session).empty())
+        return "the state at " + where + " was not finite live, and is finite in the re-run";
       session->fail();
     }
     if (static_cast<std::int64_t>(session->state_hash()) != f.at.state_hash)

@@ -225,6 +225,15 @@ std::string a_step(const char* field, std::int64_t v) {
            " (the most steps of a scene: 1e7 s at dt = 1e-7 s)";
   return {};
 }
+// A count of commands (command_seq, commands_applied): a server that took one every microsecond for
+// kLogMaxSimTime would not reach kLogMaxCommands. (A log's 2^63 - 1 made a resumed server count on from it.)
+std::string a_count(const char* field, std::int64_t v) {
+  if (v < 0) return not_negative(field, v);
+  if (v > kLogMaxCommands)
+    return std::string(field) + " = " + std::to_string(v) + " is beyond " + std::to_string(kLogMaxCommands) +
+           " (more commands than a server takes)";
+  return {};
+}
 std::string a_time(const char* field, double t) {
   char buf[160];
   if (!std::isfinite(t) || t < 0 || t > kLogMaxSimTime) {
@@ -265,7 +274,7 @@ std::string check_record(const ladderlcm::scene_t& m) {
 
 std::string check_record(const ladderlcm::state_t& m) {
   return first({not_negative("generation", m.generation), not_negative("seq", m.seq), a_step("step", m.step),
-                a_time("sim_time", m.sim_time), not_negative("commands_applied", m.commands_applied),
+                a_time("sim_time", m.sim_time), a_count("commands_applied", m.commands_applied),
                 finite("energy", m.energy), finite_all("x", m.x), finite_all("y", m.y),
                 finite_all("theta", m.theta)});
 }
@@ -280,7 +289,8 @@ std::string check_record(const ladderlcm::command_t& m) {
     if (!params.empty()) params = "accepted, but its parameter " + params;
   }
   return first({not_negative("generation", m.generation), a_step("step", m.step),
-                m.command_seq >= 1 ? "" : "command_seq = " + std::to_string(m.command_seq) + " (they start at 1)",
+                m.command_seq >= 1 ? a_count("command_seq", m.command_seq)
+                                   : "command_seq = " + std::to_string(m.command_seq) + " (they start at 1)",
                 params});
 }
 
@@ -290,7 +300,7 @@ std::string check_record(const ladderlcm::event_t& m) {
 
 std::string check_record(const ladderlcm::checkpoint_t& m) {
   return first({not_negative("generation", m.generation), a_step("step", m.step), a_time("sim_time", m.sim_time),
-                not_negative("commands_applied", m.commands_applied)});
+                a_count("commands_applied", m.commands_applied)});
 }
 
 std::string decode_lcm(std::span<const std::uint8_t> d, ladderlcm::scene_t& out) { return decode_any(d, out); }

@@ -32,6 +32,7 @@ inline constexpr double kLogMaxSimTime = 1e7;               // [s] of simulated 
 // Steps in one scene: kLogMaxSimTime at the smallest time step a scene may have (sim.dt >= 1e-7 s).
 inline constexpr std::int64_t kLogMaxStep = 100'000'000'000'000;
 inline constexpr double kLogMinDt = kMinDt, kLogMaxDt = kMaxDt;  // [s] sim.dt's range in scene files
+inline constexpr std::int64_t kLogMaxCommands = 1'000'000'000'000'000;  // command_seq, commands_applied
 
 // Decodes one event's data as the type: "" when it decodes, every byte used and every value sane; else what is
 // wrong, naming the field ("num_blocks = 268435457 is more than 1000000 (...)"). `out` is then unspecified.
@@ -42,8 +43,8 @@ std::string decode_lcm(std::span<const std::uint8_t> data, ladderlcm::event_t& o
 std::string decode_lcm(std::span<const std::uint8_t> data, ladderlcm::checkpoint_t& out);
 
 // The checks on values alone that decode_lcm applies after decoding ("" or what is wrong): generation, step,
-// command_seq and counts not negative, steps within kLogMaxStep, times finite and within kLogMaxSimTime, a
-// scene's dt within sim.dt's range, every coordinate, mass and accepted command's parameter finite.
+// command_seq and counts not negative (and within kLogMaxCommands), steps within kLogMaxStep, times finite and within
+// kLogMaxSimTime, a scene's dt within sim.dt's range, every coordinate, mass and accepted command's parameter finite.
 std::string check_record(const ladderlcm::scene_t& m);
 std::string check_record(const ladderlcm::state_t& m);
 std::string check_record(const ladderlcm::command_t& m);

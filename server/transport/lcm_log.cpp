@@ -1,5 +1,8 @@
 #include "transport/lcm_log.hpp"
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -93,6 +96,10 @@ void LogWriter::run() {
   fsync(fileno(file_.getFilePtr()));
 }
 
+// A regular file is mapped, not read: a reader then holds only the part it is reading (the pages behind it are
+// given back as it goes, kReleaseEvery at a time), where a copy in memory took twice the file (a vector grown to its
+// size) before the first event was played (a 1.1 GB log: 2.1 GB for ladderctl replay). Anything else (a pipe,
+// /dev/zero) is read into memory once its first four bytes are a log's.
 LogReader::LogReader(const std::string& path) : path_(path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot open the log file '" + path + "'");
@@ -100,17 +107,40 @@ LogReader::LogReader(const std::string& path) : path_(path) {
   char start[4] = {};
   in.read(start, sizeof start);
   bytes_.assign(start, start + in.gcount());
+  data_ = bytes_.data(), size_ = bytes_.size();
   check_start();
+  if (const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC); fd >= 0) {
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 4) {
+      void* m = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+      if (m != MAP_FAILED) {
+        ::madvise(m, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
+        map_ = m, map_size_ = static_cast<std::size_t>(st.st_size);
+        data_ = static_cast<const std::uint8_t*>(m), size_ = map_size_;
+        bytes_.clear();
+      }
+    }
+    ::close(fd);
+  }
+  if (map_) {
+    check_start();  // (the file may have changed between the two opens)
+    return;
+  }
   bytes_.insert(bytes_.end(), std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  data_ = bytes_.data(), size_ = bytes_.size();
 }
 
 LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name)
-    : path_(std::move(name)), bytes_(std::move(bytes)) {
+    : path_(std::move(name)), bytes_(std::move(bytes)), data_(bytes_.data()), size_(bytes_.size()) {
   check_start();
 }
 
+LogReader::~LogReader() {
+  if (map_) ::munmap(map_, map_size_);
+}
+
 void LogReader::check_start() const {
-  if (bytes_.size() < 4 || bytes_[0] != 0xED || bytes_[1] != 0xA1 || bytes_[2] != 0xDA || bytes_[3] != 0x01)
+  if (size_ < 4 || data_[0] != 0xED || data_[1] != 0xA1 || data_[2] != 0xDA || data_[3] != 0x01)
     throw std::runtime_error("'" + path_ + "' is not an LCM event log (it does not start with LCM's sync word)");
 }
 
@@ -131,35 +161,35 @@ std::uint64_t big_endian(const std::uint8_t* p, int n) {
 // end of the file.
 std::size_t LogReader::next_event_start(std::size_t from) const {
   constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
-  for (std::size_t i = from; i + kHeader <= bytes_.size(); ++i) {
-    const std::uint8_t* h = bytes_.data() + i;
+  for (std::size_t i = from; i + kHeader <= size_; ++i) {
+    const std::uint8_t* h = data_ + i;
     if (h[0] != 0xED || big_endian(h, 4) != 0xEDA1DA01u) continue;
     const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
-    if (channel_len > 0 && channel_len < 1000 && bytes_.size() - i - kHeader >= channel_len + data_len) return i;
+    if (channel_len > 0 && channel_len < 1000 && size_ - i - kHeader >= channel_len + data_len) return i;
   }
-  return bytes_.size();
+  return size_;
 }
 
 std::optional<LogReader::Event> LogReader::next() {
   constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
-  if (!damage_.empty() || at_ == bytes_.size()) return std::nullopt;
+  if (!damage_.empty() || at_ == size_) return std::nullopt;
   const auto stop = [&](const std::string& why) {
     damage_ = why + " at byte " + std::to_string(at_) + ", after " + std::to_string(count_) + " complete events";
     // A log cut off (a server killed while writing) ends in its damage; one damaged in the middle has events after
     // it, which a reader that stops here does not see.
-    if (const std::size_t later = next_event_start(at_ + 1); later < bytes_.size()) {
-      damage_after_ = bytes_.size() - later;
+    if (const std::size_t later = next_event_start(at_ + 1); later < size_) {
+      damage_after_ = size_ - later;
       damage_ += ", and the log goes on: " + std::to_string(damage_after_) + " bytes of events from byte " +
                  std::to_string(later) + " on are not read (the log is damaged in the middle, not cut off)";
     }
     return std::nullopt;
   };
-  if (bytes_.size() - at_ < kHeader) return stop("the log is cut off in an event header");
-  const std::uint8_t* h = bytes_.data() + at_;
+  if (size_ - at_ < kHeader) return stop("the log is cut off in an event header");
+  const std::uint8_t* h = data_ + at_;
   if (big_endian(h, 4) != 0xEDA1DA01u) return stop("no sync word where an event should start");
   const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
   if (channel_len == 0 || channel_len >= 1000 || data_len >= 0x80000000u) return stop("an impossible event length");
-  if (bytes_.size() - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
+  if (size_ - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
   Event e;
   e.number = count_ + 1;
   e.offset = at_;
@@ -169,6 +199,12 @@ std::optional<LogReader::Event> LogReader::next() {
   e.data.assign(body + channel_len, body + channel_len + data_len);
   at_ += kHeader + channel_len + data_len;
   ++count_;
+  // The mapped pages behind the event just read are given back (a reader never reads back).
+  if (map_ && at_ - released_ >= kReleaseEvery) {
+    const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE)), upto = at_ / page * page;
+    ::madvise(static_cast<std::uint8_t*>(map_) + released_, upto - released_, MADV_DONTNEED);
+    released_ = upto;
+  }
   return e;
 }
 

@@ -110,6 +110,9 @@ class LogReader {
   explicit LogReader(const std::string& path);
   // The same on bytes in memory (a fuzzer's input); `name` stands for the path in messages.
   LogReader(std::vector<std::uint8_t> bytes, std::string name);
+  ~LogReader();
+  LogReader(const LogReader&) = delete;
+  LogReader& operator=(const LogReader&) = delete;
   // The next event, or nothing at the end of the log or where it is damaged or cut off.
   std::optional<Event> next();
   // Empty, or what was wrong where reading stopped ("cut off in event 12 at byte 4096", ...).
@@ -133,8 +136,13 @@ class LogReader {
   void check_start() const;
   std::size_t next_event_start(std::size_t from) const;
 
+  static constexpr std::size_t kReleaseEvery = std::size_t{64} << 20;  // [bytes]
   std::string path_;
-  std::vector<std::uint8_t> bytes_;  // the whole file (logs are read once, front to back)
+  std::vector<std::uint8_t> bytes_;  // the log in memory (given as bytes, or a file that could not be mapped)
+  void* map_ = nullptr;              // or the file mapped (logs are read once, front to back)
+  std::size_t map_size_ = 0, released_ = 0;
+  const std::uint8_t* data_ = nullptr;  // the log: bytes_ or map_
+  std::size_t size_ = 0;
   std::size_t at_ = 0;
   std::uint64_t count_ = 0;
   std::string damage_;

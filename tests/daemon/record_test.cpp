@@ -1031,6 +1031,22 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + late);
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("(poke), accepted live, is refused in the re-run"), std::string::npos) << r.output;
+
+  // 5. A scene text in the log that makes no scene is the log's fault, not the file it was recorded from: the error
+  // says which record holds it. (Before: only "<the scene file>:1:7: ...", a file that is fine.)
+  const std::string text = (dir_ / "bad-text.lcmlog").string();
+  rewrite(text, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
+    if (e.channel == transport::kSceneChannel) {
+      auto sc = in.decode<ladderlcm::scene_t>(e);
+      sc.toml = "not = = toml";
+      return out.write(e.channel.c_str(), e.utime, sc, false);
+    }
+    out.write_bytes(e.channel, e.utime, e.data, false);
+  });
+  r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + text);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("the scene record of generation 0 holds a scene text (recorded from "), std::string::npos)
+      << r.output;
 }
 
 }  // namespace

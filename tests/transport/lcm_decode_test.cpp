@@ -14,6 +14,7 @@
 #include <bit>
 #include <cstring>
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -272,6 +273,13 @@ TEST(LcmDecode, TheFingerprintBooleansAndValuesAreChecked) {
   EXPECT_EQ(decode<ladderlcm::command_t>(encode(c)), "accepted, but its parameter b is infinite");
   c = a_command(0);
   EXPECT_EQ(decode<ladderlcm::command_t>(encode(c)), "command_seq = 0 (they start at 1)");
+  c = a_command(std::numeric_limits<std::int64_t>::max());  // (a resumed server counted on from it)
+  EXPECT_EQ(decode<ladderlcm::command_t>(encode(c)),
+            "command_seq = 9223372036854775807 is beyond 1000000000000000 (more commands than a server takes)");
+  ladderlcm::state_t st = a_state();
+  st.commands_applied = 1'000'000'000'000'001;
+  EXPECT_EQ(decode<ladderlcm::state_t>(encode(st)),
+            "commands_applied = 1000000000000001 is beyond 1000000000000000 (more commands than a server takes)");
   ladderlcm::checkpoint_t k = a_checkpoint();
   k.step = -5;
   EXPECT_EQ(decode<ladderlcm::checkpoint_t>(encode(k)), "step = -5 is negative");
