@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 
 namespace ladder::view {
@@ -113,9 +114,10 @@ std::array<Axes, 2> plot_axes(const History& h, double x, double y, double w, do
                                               [](const Point& a, const Point& b) { return a.y < b.y; });
     e0 = lo->y;
     e1 = hi->y;
-    const double pad = std::max(0.05 * (e1 - e0), 1e-9 * std::max(1.0, std::abs(e1)));
-    e0 -= pad;
-    e1 += pad;
+    const double pad = std::max(0.1 * (0.5 * e1 - 0.5 * e0), 1e-9 * std::max(1.0, std::abs(e1)));
+    constexpr double kMost = std::numeric_limits<double>::max();
+    e0 = std::max(e0 - pad, -kMost);  // (finite even for a log's energies of +-1.7e308 J)
+    e1 = std::min(e1 + pad, kMost);
   }
   // Room for the labels: 60 px left, 22 px above and below each plot.
   const double left = x + 60, width = std::max(10.0, w - 70), each = std::max(10.0, 0.5 * h_px - 44);

@@ -40,7 +40,11 @@ class History {
 struct Axes {
   double x = 0, y = 0, w = 0, h = 0;   // [px] the plotting area (inside the labels)
   double t0 = 0, t1 = 1, v0 = 0, v1 = 1;
-  Point at(double t, double v) const { return {x + (t - t0) / (t1 - t0) * w, y + h - (v - v0) / (v1 - v0) * h}; }
+  // (In halves: a range of energies from -1.7e308 to 1.7e308 J, finite, is not one a double holds.)
+  Point at(double t, double v) const {
+    return {x + (0.5 * t - 0.5 * t0) / (0.5 * t1 - 0.5 * t0) * w,
+            y + h - (0.5 * v - 0.5 * v0) / (0.5 * v1 - 0.5 * v0) * h};
+  }
 };
 // The two frames of plots drawn in the box (x, y, w, h): the ripple's front on top, the energy below.
 std::array<Axes, 2> plot_axes(const History& h, double x, double y, double w, double h_px);

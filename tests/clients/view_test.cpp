@@ -780,6 +780,25 @@ TEST(Plot, AxesAreTickedAtRoundValues) {
   cairo_surface_destroy(surface);
 }
 
+// Energies a log may hold, finite but at the ends of a double (+-1.7e308 J): the energy line is drawn inside its
+// frame, from its bottom to its top. (Before, the range overflowed to infinity and the line was left out.)
+TEST(Plot, EnergiesAtTheEndsOfADoubleAreDrawnInsideTheFrame) {
+  view::History h;
+  const double most = 1.7e308;
+  h.add(1, 0.0, -most, {0, 0});
+  h.add(1, 1.0, most, {0, 0});
+  const auto axes = view::plot_axes(h, 0, 0, 600, 400);
+  const view::Axes& e = axes[1];
+  EXPECT_TRUE(std::isfinite(e.v0) && std::isfinite(e.v1));
+  for (const double v : {-most, most}) {
+    const view::Point p = e.at(1.0, v);
+    EXPECT_TRUE(std::isfinite(p.y)) << v;
+    EXPECT_GE(p.y, e.y) << v;
+    EXPECT_LE(p.y, e.y + e.h) << v;
+  }
+  EXPECT_GT(e.at(0.0, -most).y - e.at(0.0, most).y, 0.8 * e.h);  // the line spans the frame
+}
+
 TEST(Plot, FlipFlopsAreDotsAtTheirHingeAndTime) {
   view::History h;
   h.add(1, 0.0, -1.0, {0, 0, 0});

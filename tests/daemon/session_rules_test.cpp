@@ -10,8 +10,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -197,6 +200,36 @@ TEST(SessionRules, ALoadOfAPipeOrAFolderSaysItIsNoRegularFile) {
           "'folder.toml' in " + dir.string() + " is not a regular file (a scene is a .toml file)");
   refused(s, Verb{Load{"nothing"}}, "no scene 'nothing' in " + dir.string() + " (available: classic)");
   accepted(s, Verb{Load{"classic"}});
+  fs::remove_all(dir);
+}
+
+// A scene whose rolling hinge the scene rules refuse (an end radius above half the thickness, NaN, or a rolling
+// hinge with an inset) is refused by `load` with the file's line and column, and the ladder is left as it was.
+TEST(SessionRules, ALoadOfABadRollingHingeSaysWhereAndChangesNothing) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("ladder-rolling-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ifstream in(kScenes + "/classic.toml");
+  std::stringstream classic;
+  classic << in.rdbuf();
+  const std::string text = classic.str();
+  const std::size_t at = text.find("logic = true");
+  ASSERT_NE(at, std::string::npos);
+  const auto write = [&](const std::string& name, const std::string& lines) {
+    std::ofstream(dir / (name + ".toml")) << text.substr(0, at) + lines + text.substr(at);
+  };
+  write("wide", "hinge = \"rolling\"\nend_radius = 0.02\n");
+  write("nan", "hinge = \"rolling\"\nend_radius = nan\n");
+  write("inset", "hinge = \"rolling\"\nend_radius = 0.004\nhinge_inset = 0.1\n");
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+  scene::Scene sc = scene::load_scene(kScenes + "/classic.toml");
+  Session s(sc, dir.string(), Limits{}, Rates{});
+  const auto starts_with = [&](const std::string& name, const std::string& where) {
+    refused(s, Verb{Load{name}}, (dir / (name + ".toml")).string() + ":" + where, false);
+  };
+  starts_with("wide", std::to_string(line + 1) + ":14: ladder.end_radius must be at most half");
+  starts_with("nan", std::to_string(line + 1) + ":14: ");
+  starts_with("inset", std::to_string(line + 2) + ":15: ");
   fs::remove_all(dir);
 }
 
