@@ -37,7 +37,9 @@ int finish(const view::History& h, const PlotOptions& o, const std::string& from
   if (!h.flips().empty()) std::printf(" at hinges %.0f to %.0f", first, last);
   std::printf(" over t = %.3f to %.3f s, energy %.6g to %.6g J", h.energy().front().x, h.energy().back().x, lo, hi);
   if (h.runs() > 1)
-    std::printf(" (the last of %d scene generations: each reset or load starts the plot again)", h.runs());
+    std::printf(" (the last of %d runs: each reset or load, or a state earlier than the one before it, starts the "
+                "plot again)",
+                h.runs());
   std::printf("\n");
   return 0;
 }

@@ -457,10 +457,11 @@ TEST_F(Ladderctl, PlotWritesTheRippleFromTheServerAndFromItsRecording) {
   EXPECT_NE(b.output.find("(600x400 px) from " + log + ": 5 flip-flops at hinges 1 to 5 over t = 0.0"),  // (from the reset)
             std::string::npos)
       << b.output;
-  EXPECT_NE(b.output.find(" J (the last of 2 scene generations: each reset or load starts the plot again)\n"),
+  EXPECT_NE(b.output.find(" J (the last of 2 runs: each reset or load, or a state earlier than the one before it, "
+                          "starts the plot again)\n"),
             std::string::npos)
       << b.output;
-  EXPECT_EQ(a.output.find("scene generations"), std::string::npos) << a.output;  // the live plot saw one
+  EXPECT_EQ(a.output.find("the last of"), std::string::npos) << a.output;  // the live plot saw one
   for (const std::string& png : {live, recorded}) {
     cairo_surface_t* img = cairo_image_surface_create_from_png(png.c_str());
     ASSERT_EQ(cairo_surface_status(img), CAIRO_STATUS_SUCCESS) << png;
