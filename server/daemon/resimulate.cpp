@@ -150,8 +150,9 @@ struct Origins {
   std::vector<Origin> scenes, commands, states, checkpoints, failures;
 };
 
-// The checks across records (each record's own values were checked as it was decoded).
-void check_session(const SessionLog& log, const Origins& at) {
+// The checks across records (each record's own values were checked as it was decoded). Records each generation's dt
+// range in `log`.
+void check_session(SessionLog& log, const Origins& at) {
   std::map<std::int32_t, GenerationInfo> gens;
   for (std::size_t i = 0; i < log.scenes.size(); ++i) {
     const ladderlcm::scene_t& s = log.scenes[i];
@@ -166,6 +167,7 @@ void check_session(const SessionLog& log, const Origins& at) {
     it->second.min_dt = std::min(it->second.min_dt, s.dt);
     it->second.max_dt = std::max(it->second.max_dt, s.dt);
   }
+  for (const auto& [g, info] : gens) log.dt_range[g] = {info.min_dt, info.max_dt};
   for (std::size_t i = 0; i < log.checkpoints.size(); ++i) {
     const ladderlcm::checkpoint_t& c = log.checkpoints[i];
     const auto it = gens.find(c.generation);
@@ -284,14 +286,6 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
   // log does not say, so a re-run holds them to the widest any configuration allows: a logged poke of 1e300 N s,
   // which no ladderd accepts, is refused here rather than made into a state nobody can publish.
   session = std::make_unique<Session>(scene_of(log.scenes.front()), "", kWidestLimits, Rates{});
-  // The dt each generation's scene records say it ran at (a live setting can change it, and the server then writes
-  // a record). The checks of a log's steps and times take them on its word, so the re-run holds its scene to them:
-  // a record that claimed dt = 1e-7 s for a scene that steps 1e-3 s let a few bytes of log order 2e7 steps.
-  std::map<std::int32_t, std::pair<double, double>> dt_range;
-  for (const ladderlcm::scene_t& sc : log.scenes) {
-    const auto [it, fresh] = dt_range.try_emplace(sc.generation, sc.dt, sc.dt);
-    it->second = {std::min(it->second.first, sc.dt), std::max(it->second.second, sc.dt)};
-  }
   std::size_t next_command = 0;
   std::int64_t applied = 0;  // commands taken, as the server counted them
 
@@ -341,7 +335,9 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
       // As the server does: paused, a step is one that a step command ordered (so that a resumed session keeps
       // only the ordered steps not yet taken where the log ends).
       if (session->paused() && session->pending_steps() > 0) session->take_pending_step();
-      if (const auto range = dt_range.find(gen); range != dt_range.end()) {
+      // Held to its records' dt (SessionLog::dt_range): a record that claimed dt = 1e-7 s for a scene that steps
+      // 1e-3 s let a few bytes of log order 2e7 steps.
+      if (const auto range = log.dt_range.find(gen); range != log.dt_range.end()) {
         const double dt = session->sim().dt();
         if (!(dt >= range->second.first && dt <= range->second.second)) {
           char buf[200];

@@ -17,9 +17,11 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ladder::daemon {
@@ -39,6 +41,9 @@ struct SessionLog {
   std::uint64_t events = 0;                        // event records (not needed to re-run)
   std::string damage;                              // where a damaged or cut-off log stopped; empty if whole
   std::size_t damage_after = 0;                    // bytes of events after the damage (0: the log is cut off there)
+  // Each generation's smallest and largest dt, as its scene records say (a live setting can change dt, and the
+  // server then writes a record): the checks take steps and times on their word, and a re-run holds its scene to them.
+  std::map<std::int32_t, std::pair<double, double>> dt_range;
 };
 
 // Reads a whole log, and checks it: every event decodes with our decoders (transport/lcm_decode.hpp), and the

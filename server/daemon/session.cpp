@@ -327,9 +327,9 @@ std::string scene_names(const std::string& dir) {
 Outcome Session::load(const std::string& name) {
   namespace fs = std::filesystem;
   if (name.empty()) return {false, "load: give a scene name, e.g. classic"};
-  if (quoted(name) != name)  // (a long name is no scene's: said before the reason and the list of scenes are cut)
-    return {false,
-            "no scene '" + quoted(name) + "' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
+  // (A long name is no scene's: said before the reason and the list of scenes are cut.)
+  if (const std::string shown = quoted(name); shown != name)
+    return {false, "no scene '" + shown + "' in " + scenes_dir_ + " (available: " + scene_names(scenes_dir_) + ")"};
   if (name.find('/') != std::string::npos || name.find('\\') != std::string::npos || name.starts_with("."))
     return {false, "not permitted: scenes are loaded by name from the server's scene directory " + scenes_dir_};
   const fs::path path = fs::path(scenes_dir_) / (name.ends_with(".toml") ? name : name + ".toml");

@@ -218,21 +218,19 @@ std::string decode_any(std::span<const std::uint8_t> data, T& out) {
 std::string not_negative(const char* field, std::int64_t v) {
   return v < 0 ? std::string(field) + " = " + std::to_string(v) + " is negative" : "";
 }
-std::string a_step(const char* field, std::int64_t v) {
+// A count not negative and at most `most`, which `why` explains.
+std::string at_most(const char* field, std::int64_t v, std::int64_t most, const char* why) {
   if (v < 0) return not_negative(field, v);
-  if (v > kLogMaxStep)
-    return std::string(field) + " = " + std::to_string(v) + " is beyond " + std::to_string(kLogMaxStep) +
-           " (the most steps of a scene: 1e7 s at dt = 1e-7 s)";
+  if (v > most) return std::string(field) + " = " + std::to_string(v) + " is beyond " + std::to_string(most) + why;
   return {};
+}
+std::string a_step(const char* field, std::int64_t v) {
+  return at_most(field, v, kLogMaxStep, " (the most steps of a scene: 1e7 s at dt = 1e-7 s)");
 }
 // A count of commands (command_seq, commands_applied): a server that took one every microsecond for
 // kLogMaxSimTime would not reach kLogMaxCommands. (A log's 2^63 - 1 made a resumed server count on from it.)
 std::string a_count(const char* field, std::int64_t v) {
-  if (v < 0) return not_negative(field, v);
-  if (v > kLogMaxCommands)
-    return std::string(field) + " = " + std::to_string(v) + " is beyond " + std::to_string(kLogMaxCommands) +
-           " (more commands than a server takes)";
-  return {};
+  return at_most(field, v, kLogMaxCommands, " (more commands than a server takes)");
 }
 std::string a_time(const char* field, double t) {
   char buf[160];

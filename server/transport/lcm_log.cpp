@@ -155,23 +155,27 @@ std::uint64_t big_endian(const std::uint8_t* p, int n) {
   for (int i = 0; i < n; ++i) v = (v << 8) | p[i];
   return v;
 }
+// An event's header: sync word, event number, timestamp, channel and data lengths.
+constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
+// Lengths no event has (a channel name of LCM's at most 999 bytes, data under 2 GiB).
+bool impossible_lengths(std::uint64_t channel_len, std::uint64_t data_len) {
+  return channel_len == 0 || channel_len >= 1000 || data_len >= 0x80000000u;
+}
 }  // namespace
 
 // The first place at or after `from` where a whole event header with plausible lengths starts (a sync word), or the
 // end of the file.
 std::size_t LogReader::next_event_start(std::size_t from) const {
-  constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
   for (std::size_t i = from; i + kHeader <= size_; ++i) {
     const std::uint8_t* h = data_ + i;
     if (h[0] != 0xED || big_endian(h, 4) != 0xEDA1DA01u) continue;
     const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
-    if (channel_len > 0 && channel_len < 1000 && size_ - i - kHeader >= channel_len + data_len) return i;
+    if (!impossible_lengths(channel_len, data_len) && size_ - i - kHeader >= channel_len + data_len) return i;
   }
   return size_;
 }
 
 std::optional<LogReader::Event> LogReader::next() {
-  constexpr std::size_t kHeader = 4 + 8 + 8 + 4 + 4;
   if (!damage_.empty() || at_ == size_) return std::nullopt;
   const auto stop = [&](const std::string& why) {
     damage_ = why + " at byte " + std::to_string(at_) + ", after " + std::to_string(count_) + " complete events";
@@ -188,7 +192,7 @@ std::optional<LogReader::Event> LogReader::next() {
   const std::uint8_t* h = data_ + at_;
   if (big_endian(h, 4) != 0xEDA1DA01u) return stop("no sync word where an event should start");
   const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
-  if (channel_len == 0 || channel_len >= 1000 || data_len >= 0x80000000u) return stop("an impossible event length");
+  if (impossible_lengths(channel_len, data_len)) return stop("an impossible event length");
   if (size_ - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
   Event e;
   e.number = count_ + 1;
