@@ -95,6 +95,21 @@ class Record : public ::testing::Test {
   std::optional<Client> client_;
 };
 
+// The log `from` written again to `to`, each event through `bend`, which either writes it itself (changed, or not
+// at all) and returns true, or returns false to have it copied as it is; `after` may add events at the end.
+using Reader = transport::LogReader;
+using Writer = transport::LogWriter;
+using LogEvent = transport::LogReader::Event;
+using Bend = std::function<bool(Reader&, const LogEvent&, Writer&)>;
+void rewrite_log(const std::string& from, const std::string& to, const Bend& bend,
+                 const std::function<void(Writer&)>& after = {}) {
+  Reader in(from);
+  Writer out(to);
+  while (auto e = in.next())
+    if (!bend(in, *e, out)) out.write_bytes(e->channel, e->utime, e->data, false);
+  if (after) after(out);
+}
+
 // A classic session with a tip, a poke, a live setting, a pause with single steps and a reset: re-simulated from
 // the log, every recorded state is identical to the last bit; a state changed by 1 ulp is caught and named.
 TEST_F(Record, ClassicSessionResimulatesBitForBit) {
@@ -124,25 +139,19 @@ TEST_F(Record, ClassicSessionResimulatesBitForBit) {
   EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
 
   // The same log with one block's x changed by one ulp in one state: the re-run names that state and block.
-  transport::LogReader in(log_);
   const std::string bent = (dir_ / "bent.lcmlog").string();
   double recorded = 0;
   std::int64_t bent_step = -1;
-  {
-    transport::LogWriter out(bent);
-    std::size_t states = 0;
-    while (auto e = in.next()) {
-      if (e->channel == transport::kStateChannel && ++states == 50) {
-        auto s = in.decode<ladderlcm::state_t>(*e);
-        recorded = s.x[4];
-        s.x[4] = std::nextafter(s.x[4], 1.0);
-        bent_step = s.step;
-        out.write(transport::kStateChannel, e->utime, s, false);
-        continue;
-      }
-      out.write_bytes(e->channel, e->utime, e->data, false);
-    }
-  }
+  std::size_t states = 0;
+  rewrite_log(log_, bent, [&](Reader& in, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kStateChannel || ++states != 50) return false;
+    auto s = in.decode<ladderlcm::state_t>(e);
+    recorded = s.x[4];
+    s.x[4] = std::nextafter(s.x[4], 1.0);
+    bent_step = s.step;
+    out.write(transport::kStateChannel, e.utime, s, false);
+    return true;
+  });
   const Result b = shell(kLadderd + " --offline --resimulate " + bent);
   EXPECT_EQ(b.code, 1) << b.output;
   EXPECT_NE(b.output.find("step " + std::to_string(bent_step)), std::string::npos) << b.output;
@@ -318,21 +327,15 @@ TEST_F(Record, ReplaySkipsAStateWithAnUnknownHingeStatus) {
   start({"--record", log_});
   run_until(0.3);
   ASSERT_EQ(stop_server(SIGTERM), 0);
-  transport::LogReader in(log_);
   const std::string bent = (dir_ / "bent.lcmlog").string();
   std::size_t states = 0;
-  {
-    transport::LogWriter out(bent);
-    while (auto e = in.next()) {
-      if (e->channel == transport::kStateChannel && ++states == 5) {
-        auto s = in.decode<ladderlcm::state_t>(*e);
-        s.status[2] = 7;
-        out.write(transport::kStateChannel, e->utime, s, false);
-        continue;
-      }
-      out.write_bytes(e->channel, e->utime, e->data, false);
-    }
-  }
+  rewrite_log(log_, bent, [&](Reader& in, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kStateChannel || ++states != 5) return false;
+    auto s = in.decode<ladderlcm::state_t>(e);
+    s.status[2] = 7;
+    out.write(transport::kStateChannel, e.utime, s, false);
+    return true;
+  });
   ASSERT_GT(states, 5u);
   const Result r = shell(kLadderctl + " replay " + bent + " --speed 0 --as " + sim_id_ + "-replay --domain " +
                          std::to_string(domain_));
@@ -402,16 +405,13 @@ TEST_F(Record, AForgedTimestampCannotStallAReplay) {
   start({"--record", log_});
   run_until(0.3);
   ASSERT_EQ(stop_server(SIGTERM), 0);
-  transport::LogReader in(log_);
   const std::string bent = (dir_ / "late.lcmlog").string();
   std::size_t states = 0;
-  {
-    transport::LogWriter out(bent);
-    while (auto e = in.next()) {
-      const bool forged = e->channel == transport::kStateChannel && ++states == 3;
-      out.write_bytes(e->channel, forged ? e->utime + (std::int64_t{1} << 40) : e->utime, e->data, false);
-    }
-  }
+  rewrite_log(log_, bent, [&](Reader&, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kStateChannel || ++states != 3) return false;
+    out.write_bytes(e.channel, e.utime + (std::int64_t{1} << 40), e.data, false);
+    return true;
+  });
   ASSERT_GT(states, 3u);
   // --speed 10: the 10 s pause takes 1 s.
   const Result r = shell("timeout -s KILL 20 " + kLadderctl + " replay " + bent + " --speed 10 --as " + sim_id_ +
@@ -429,19 +429,17 @@ TEST_F(Record, AReplayKeepsItsPaceAfterTheRecordedClockStepsBack) {
   start({"--record", log_});
   run_until(2.5);
   ASSERT_EQ(stop_server(SIGTERM), 0);
-  transport::LogReader in(log_);
   const std::string bent = (dir_ / "stepped.lcmlog").string();
   std::size_t states = 0;
   std::int64_t stepped_at = 0, last = 0;
-  {
-    transport::LogWriter out(bent);
+  rewrite_log(log_, bent, [&](Reader&, const LogEvent& e, Writer& out) {
     constexpr std::int64_t kHour = 3'600'000'000;  // [us]
-    while (auto e = in.next()) {
-      if (e->channel == transport::kStateChannel && ++states == 3) stepped_at = e->utime;
-      last = e->utime;
-      out.write_bytes(e->channel, stepped_at != 0 ? e->utime - kHour : e->utime, e->data, false);
-    }
-  }
+    if (e.channel == transport::kStateChannel && ++states == 3) stepped_at = e.utime;
+    last = e.utime;
+    if (stepped_at == 0) return false;
+    out.write_bytes(e.channel, e.utime - kHour, e.data, false);
+    return true;
+  });
   const double after = 1e-6 * static_cast<double>(last - stepped_at);  // [s] of recording after the step
   ASSERT_GT(after, 2.0);
   const auto t0 = std::chrono::steady_clock::now();
@@ -471,22 +469,16 @@ TEST_F(Record, ReplayOfASceneThatDoesNotBuildHereSaysSoAndPlays) {
   start({"--record", log_});
   run_until(0.3);
   ASSERT_EQ(stop_server(SIGTERM), 0);
-  transport::LogReader in(log_);
   const std::string bent = (dir_ / "bent.lcmlog").string();
   std::size_t states = 0;
-  {
-    transport::LogWriter out(bent);
-    while (auto e = in.next()) {
-      states += e->channel == transport::kStateChannel;
-      if (e->channel == transport::kSceneChannel) {
-        auto sc = in.decode<ladderlcm::scene_t>(*e);
-        sc.toml = "not = = toml";
-        out.write(transport::kSceneChannel, e->utime, sc, false);
-        continue;
-      }
-      out.write_bytes(e->channel, e->utime, e->data, false);
-    }
-  }
+  rewrite_log(log_, bent, [&](Reader& in, const LogEvent& e, Writer& out) {
+    states += e.channel == transport::kStateChannel;
+    if (e.channel != transport::kSceneChannel) return false;
+    auto sc = in.decode<ladderlcm::scene_t>(e);
+    sc.toml = "not = = toml";
+    out.write(transport::kSceneChannel, e.utime, sc, false);
+    return true;
+  });
   const Result r = shell(kLadderctl + " replay " + bent + " --speed 0 --as " + sim_id_ + "-replay --domain " +
                          std::to_string(domain_));
   EXPECT_EQ(r.code, 0) << r.output;
@@ -623,16 +615,15 @@ TEST_F(Record, CorruptOrTruncatedLogsAreRefusedOrReadUpToTheDamage) {
 // the event's number.
 std::uint64_t bend_first(const std::string& from, const std::string& to, const char* channel,
                          const std::function<void(std::vector<std::uint8_t>&)>& bend) {
-  transport::LogReader in(from);
-  transport::LogWriter out(to);
   std::uint64_t bent = 0;
-  while (auto e = in.next()) {
-    if (!bent && e->channel == channel) {
-      bend(e->data);
-      bent = e->number;
-    }
-    out.write_bytes(e->channel, e->utime, e->data, false);
-  }
+  rewrite_log(from, to, [&](Reader&, const LogEvent& e, Writer& out) {
+    if (bent || e.channel != channel) return false;
+    std::vector<std::uint8_t> data = e.data;
+    bend(data);
+    bent = e.number;
+    out.write_bytes(e.channel, e.utime, std::move(data), false);
+    return true;
+  });
   return bent;
 }
 void put_big_endian(std::vector<std::uint8_t>& data, std::size_t at, std::uint64_t v, int bytes) {
@@ -860,12 +851,9 @@ TEST_F(Record, AFailedStepAndTheResetAfterItReRunAndResume) {
   EXPECT_NE(r.output.find("(5 commands; 1 failed step failed alike)"), std::string::npos) << r.output;
 
   const std::string without = (dir_ / "without.lcmlog").string();
-  {
-    transport::LogReader in(log_);
-    transport::LogWriter out(without);
-    while (auto e = in.next())
-      if (e->channel != transport::kFailureChannel) out.write_bytes(e->channel, e->utime, e->data, false);
-  }
+  rewrite_log(log_, without, [](Reader&, const LogEvent& e, Writer&) {
+    return e.channel == transport::kFailureChannel;  // (left out)
+  });
   r = shell(kLadderd + " --offline --resimulate " + without);
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("command 5 (resume), accepted live, is refused in the re-run: not paused"), std::string::npos)
@@ -891,19 +879,13 @@ TEST_F(Record, AResumedLogIsHeldToTheWidestLimitsAConfigurationAllows) {
   run_until(0.3);
   ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
   const std::string bad = (dir_ / "poke.lcmlog").string();
-  {
-    transport::LogReader in(log_);
-    transport::LogWriter out(bad);
-    while (auto e = in.next()) {
-      if (e->channel == transport::kCommandChannel) {
-        auto c = in.decode<ladderlcm::command_t>(*e);
-        c.a = 1e300;
-        out.write(transport::kCommandChannel, e->utime, c, false);
-        continue;
-      }
-      out.write_bytes(e->channel, e->utime, e->data, false);
-    }
-  }
+  rewrite_log(log_, bad, [](Reader& in, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kCommandChannel) return false;
+    auto c = in.decode<ladderlcm::command_t>(e);
+    c.a = 1e300;
+    out.write(transport::kCommandChannel, e.utime, c, false);
+    return true;
+  });
   const Result r = shell("timeout -s KILL 20 " + kLadderd + " --domain " + std::to_string(domain_) + " --sim-id " +
                          sim_id_ + "-bad --resume " + bad);
   EXPECT_EQ(r.code, 2) << r.output;
@@ -916,11 +898,6 @@ TEST_F(Record, AResumedLogIsHeldToTheWidestLimitsAConfigurationAllows) {
 // A log is held to what its scene does, not only to what its records say (four findings of a hostile-log probe).
 TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   const std::string d = std::to_string(domain_);
-  const auto rewrite = [&](const std::string& to, auto&& bend) {
-    transport::LogReader in(log_);
-    transport::LogWriter out(to);
-    while (auto e = in.next()) bend(in, *e, out);
-  };
   // 3 (first: its own recording, which ends paused). The step command made 1e9 steps (the most the widest limits
   // allow), of which the run took 5: a resumed server owes the rest, but takes at most its own
   // commands.max_step_count (100 000 by default). (Before: it ran them all flat out, "paused", for hours.)
@@ -932,13 +909,12 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // (the 5 steps taken, their state logged)
   ASSERT_EQ(stop_server(SIGTERM), 0) << server_->log();
   const std::string many = (dir_ / "many-steps.lcmlog").string();
-  rewrite(many, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
-    if (e.channel == transport::kCommandChannel) {
-      auto c = in.decode<ladderlcm::command_t>(e);
-      if (c.kind == ladder_msg_STEP) c.count = 1'000'000'000;
-      return out.write(e.channel.c_str(), e.utime, c, false);
-    }
-    out.write_bytes(e.channel, e.utime, e.data, false);
+  rewrite_log(log_, many, [](Reader& in, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kCommandChannel) return false;
+    auto c = in.decode<ladderlcm::command_t>(e);
+    if (c.kind == ladder_msg_STEP) c.count = 1'000'000'000;
+    out.write(transport::kCommandChannel, e.utime, c, false);
+    return true;
   });
   Result r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + many);
   EXPECT_EQ(r.code, 0) << r.output;  // (the re-run matches the log: it takes the steps the log shows)
@@ -959,23 +935,23 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   // (2e7 steps a checkpoint), while the scene the text makes steps 1 ms. The re-run stops at once, saying so.
   // (Before: it stepped 1 ms steps toward step 3e6 and more, an hour of CPU for a 1000-block scene.)
   const std::string tiny = (dir_ / "tiny-dt.lcmlog").string();
-  rewrite(tiny, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
+  rewrite_log(log_, tiny, [](Reader& in, const LogEvent& e, Writer& out) {
     if (e.channel == transport::kSceneChannel) {
       auto sc = in.decode<ladderlcm::scene_t>(e);
       sc.dt = 1e-7;
-      return out.write(e.channel.c_str(), e.utime, sc, false);
-    }
-    if (e.channel == transport::kStateChannel) {
+      out.write(transport::kSceneChannel, e.utime, sc, false);
+    } else if (e.channel == transport::kStateChannel) {
       auto st = in.decode<ladderlcm::state_t>(e);
       st.step = std::llround(st.sim_time / 1e-7);
-      return out.write(e.channel.c_str(), e.utime, st, false);
-    }
-    if (e.channel == transport::kCommandChannel) {
+      out.write(transport::kStateChannel, e.utime, st, false);
+    } else if (e.channel == transport::kCommandChannel) {
       auto c = in.decode<ladderlcm::command_t>(e);
       c.step = std::llround(static_cast<double>(c.step) * 1e-3 / 1e-7);
-      return out.write(e.channel.c_str(), e.utime, c, false);
+      out.write(transport::kCommandChannel, e.utime, c, false);
+    } else {
+      return false;
     }
-    out.write_bytes(e.channel, e.utime, e.data, false);
+    return true;
   });
   r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + tiny);
   EXPECT_EQ(r.code, 1) << r.output;
@@ -986,8 +962,8 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   // 2. One event in the middle damaged (its sync word), intact events after it: --resume refuses to go back to
   // before it, which would drop what follows (acknowledged commands perhaps); --resimulate says the rest was not
   // re-run. (Before: resumed from before the damage, and "identical", with exit 0.)
-  std::ifstream in(log_, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::ifstream file(log_, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
   std::size_t middle = bytes.find("\xED\xA1\xDA\x01", bytes.size() / 2);
   ASSERT_NE(middle, std::string::npos);
   bytes[middle] = 'X';
@@ -1006,28 +982,29 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   // 4. A command after the last state that the re-run refuses (a poke of block 99 of 6): --resume refuses the log,
   // and so does --resimulate now. (Before: "identical", exit 0, as it stopped at the last state.)
   const std::string late = (dir_ / "late-poke.lcmlog").string();
-  {
-    transport::LogReader in(log_);
-    transport::LogWriter out(late);
-    std::optional<ladderlcm::command_t> last;
-    std::int64_t last_step = 0;
-    while (auto e = in.next()) {
-      if (e->channel == transport::kCommandChannel) last = in.decode<ladderlcm::command_t>(*e);
-      if (e->channel == transport::kStateChannel) last_step = in.decode<ladderlcm::state_t>(*e).step;
-      out.write_bytes(e->channel, e->utime, e->data, false);
-    }
-    ASSERT_TRUE(last.has_value());
-    ladderlcm::command_t poke = *last;
-    poke.command_seq = last->command_seq + 1;
-    poke.command_id = last->command_id + 1;
-    poke.kind = ladder_msg_POKE;
-    poke.block = 99;
-    poke.a = 0.001;
-    poke.step = last_step + 1;
-    poke.accepted = true;
-    poke.reason = "";
-    out.write(transport::kCommandChannel, last->utime, poke, false);
-  }
+  std::optional<ladderlcm::command_t> last;
+  std::int64_t last_step = 0;
+  rewrite_log(
+      log_, late,
+      [&](Reader& in, const LogEvent& e, Writer&) {
+        if (e.channel == transport::kCommandChannel) last = in.decode<ladderlcm::command_t>(e);
+        if (e.channel == transport::kStateChannel) last_step = in.decode<ladderlcm::state_t>(e).step;
+        return false;
+      },
+      [&](Writer& out) {
+        if (!last) return;
+        ladderlcm::command_t poke = *last;
+        poke.command_seq = last->command_seq + 1;
+        poke.command_id = last->command_id + 1;
+        poke.kind = ladder_msg_POKE;
+        poke.block = 99;
+        poke.a = 0.001;
+        poke.step = last_step + 1;
+        poke.accepted = true;
+        poke.reason = "";
+        out.write(transport::kCommandChannel, last->utime, poke, false);
+      });
+  ASSERT_TRUE(last.has_value());
   r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + late);
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("(poke), accepted live, is refused in the re-run"), std::string::npos) << r.output;
@@ -1035,13 +1012,12 @@ TEST_F(Record, AForgedLogIsHeldToWhatItsSceneSteps) {
   // 5. A scene text in the log that makes no scene is the log's fault, not the file it was recorded from: the error
   // says which record holds it. (Before: only "<the scene file>:1:7: ...", a file that is fine.)
   const std::string text = (dir_ / "bad-text.lcmlog").string();
-  rewrite(text, [](transport::LogReader& in, const transport::LogReader::Event& e, transport::LogWriter& out) {
-    if (e.channel == transport::kSceneChannel) {
-      auto sc = in.decode<ladderlcm::scene_t>(e);
-      sc.toml = "not = = toml";
-      return out.write(e.channel.c_str(), e.utime, sc, false);
-    }
-    out.write_bytes(e.channel, e.utime, e.data, false);
+  rewrite_log(log_, text, [](Reader& in, const LogEvent& e, Writer& out) {
+    if (e.channel != transport::kSceneChannel) return false;
+    auto sc = in.decode<ladderlcm::scene_t>(e);
+    sc.toml = "not = = toml";
+    out.write(transport::kSceneChannel, e.utime, sc, false);
+    return true;
   });
   r = shell("timeout -s KILL 20 " + kLadderd + " --offline --resimulate " + text);
   EXPECT_EQ(r.code, 2) << r.output;
