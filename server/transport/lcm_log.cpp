@@ -1,16 +1,14 @@
 #include "transport/lcm_log.hpp"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
 
 namespace ladder::transport {
 
@@ -96,52 +94,73 @@ void LogWriter::run() {
   fsync(fileno(file_.getFilePtr()));
 }
 
-// A regular file is mapped, not read: a reader then holds only the part it is reading (the pages behind it are
-// given back as it goes, kReleaseEvery at a time), where a copy in memory took twice the file (a vector grown to its
-// size) before the first event was played (a 1.1 GB log: 2.1 GB for ladderctl replay). Anything else (a pipe,
-// /dev/zero) is read into memory once its first four bytes are a log's.
+namespace {
+// Reads up to n bytes at `offset` (pread) or, with offset < 0, from where the file is (read); fewer at its end.
+std::size_t read_fully(int fd, std::uint8_t* to, std::size_t n, off_t offset) {
+  std::size_t got = 0;
+  while (got < n) {
+    const ssize_t r = offset < 0 ? ::read(fd, to + got, n - got)
+                                 : ::pread(fd, to + got, n - got, offset + static_cast<off_t>(got));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) break;
+    got += static_cast<std::size_t>(r);
+  }
+  return got;
+}
+}  // namespace
+
+// A regular file is read a window at a time: a reader then holds only the part it is reading (a 1.1 GB log took
+// 2.1 GB for ladderctl replay when it was read into memory whole, a vector grown to its size), and a file shortened
+// by another program while it is read ends the log there, as damage. Anything else (a pipe) is read into memory once
+// its first four bytes are a log's (/dev/zero, which never ends, is refused before it is read).
 LogReader::LogReader(const std::string& path) : path_(path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open the log file '" + path + "'");
-  // The sync word first: a file that is not a log (/dev/zero, say, which never ends) is refused before it is read.
-  char start[4] = {};
-  in.read(start, sizeof start);
-  bytes_.assign(start, start + in.gcount());
-  data_ = bytes_.data(), size_ = bytes_.size();
-  check_start();
-  if (const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC); fd >= 0) {
-    struct stat st {};
-    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 4) {
-      void* m = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
-      if (m != MAP_FAILED) {
-        ::madvise(m, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
-        map_ = m, map_size_ = static_cast<std::size_t>(st.st_size);
-        data_ = static_cast<const std::uint8_t*>(m), size_ = map_size_;
-        bytes_.clear();
-      }
-    }
-    ::close(fd);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw std::runtime_error("cannot open the log file '" + path + "'");
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) {
+    fd_ = fd, size_ = static_cast<std::size_t>(st.st_size);
+    const std::uint8_t* start = size_ >= 4 ? bytes_at(0, 4) : nullptr;
+    if (start && starts_a_log(start, 4)) return;
+    ::close(fd_);  // (the destructor does not run when the constructor throws)
+    not_a_log();
   }
-  if (map_) {
-    check_start();  // (the file may have changed between the two opens)
-    return;
+  bytes_.resize(4);
+  bytes_.resize(read_fully(fd, bytes_.data(), 4, -1));
+  if (starts_a_log(bytes_.data(), bytes_.size())) {
+    std::vector<std::uint8_t> chunk(std::size_t{1} << 16);
+    for (std::size_t got; (got = read_fully(fd, chunk.data(), chunk.size(), -1)) > 0;)
+      bytes_.insert(bytes_.end(), chunk.begin(), chunk.begin() + static_cast<std::ptrdiff_t>(got));
   }
-  bytes_.insert(bytes_.end(), std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  data_ = bytes_.data(), size_ = bytes_.size();
+  ::close(fd);
+  if (!starts_a_log(bytes_.data(), bytes_.size())) not_a_log();
+  size_ = bytes_.size();
 }
 
 LogReader::LogReader(std::vector<std::uint8_t> bytes, std::string name)
-    : path_(std::move(name)), bytes_(std::move(bytes)), data_(bytes_.data()), size_(bytes_.size()) {
-  check_start();
+    : path_(std::move(name)), bytes_(std::move(bytes)), size_(bytes_.size()) {
+  if (!starts_a_log(bytes_.data(), bytes_.size())) not_a_log();
 }
 
 LogReader::~LogReader() {
-  if (map_) ::munmap(map_, map_size_);
+  if (fd_ >= 0) ::close(fd_);
 }
 
-void LogReader::check_start() const {
-  if (size_ < 4 || data_[0] != 0xED || data_[1] != 0xA1 || data_[2] != 0xDA || data_[3] != 0x01)
-    throw std::runtime_error("'" + path_ + "' is not an LCM event log (it does not start with LCM's sync word)");
+bool LogReader::starts_a_log(const std::uint8_t* p, std::size_t n) {
+  return n >= 4 && p[0] == 0xED && p[1] == 0xA1 && p[2] == 0xDA && p[3] == 0x01;
+}
+
+void LogReader::not_a_log() const {
+  throw std::runtime_error("'" + path_ + "' is not an LCM event log (it does not start with LCM's sync word)");
+}
+
+const std::uint8_t* LogReader::bytes_at(std::size_t pos, std::size_t n) {
+  if (fd_ < 0) return bytes_.data() + pos;
+  if (pos >= base_ && pos - base_ + n <= bytes_.size()) return bytes_.data() + (pos - base_);
+  const std::size_t want = std::min(size_ - pos, std::max(n, kWindow));
+  bytes_.resize(want);
+  bytes_.resize(read_fully(fd_, bytes_.data(), want, static_cast<off_t>(pos)));
+  base_ = pos;
+  return bytes_.size() >= n ? bytes_.data() : nullptr;
 }
 
 void LogReader::refuse(const Event& e, const std::string& type, const std::string& why) const {
@@ -165,9 +184,10 @@ bool impossible_lengths(std::uint64_t channel_len, std::uint64_t data_len) {
 
 // The first place at or after `from` where a whole event header with plausible lengths starts (a sync word), or the
 // end of the file.
-std::size_t LogReader::next_event_start(std::size_t from) const {
+std::size_t LogReader::next_event_start(std::size_t from) {
   for (std::size_t i = from; i + kHeader <= size_; ++i) {
-    const std::uint8_t* h = data_ + i;
+    const std::uint8_t* h = bytes_at(i, kHeader);
+    if (!h) break;  // the file was shortened
     if (h[0] != 0xED || big_endian(h, 4) != 0xEDA1DA01u) continue;
     const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
     if (!impossible_lengths(channel_len, data_len) && size_ - i - kHeader >= channel_len + data_len) return i;
@@ -188,12 +208,16 @@ std::optional<LogReader::Event> LogReader::next() {
     }
     return std::nullopt;
   };
+  static const std::string shortened = "the log file became shorter while it was read (another program cut it), cutting off the event";
   if (size_ - at_ < kHeader) return stop("the log is cut off in an event header");
-  const std::uint8_t* h = data_ + at_;
+  const std::uint8_t* h = bytes_at(at_, kHeader);
+  if (!h) return stop(shortened);
   if (big_endian(h, 4) != 0xEDA1DA01u) return stop("no sync word where an event should start");
   const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
   if (impossible_lengths(channel_len, data_len)) return stop("an impossible event length");
   if (size_ - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
+  const std::size_t length = kHeader + channel_len + data_len;
+  if (!(h = bytes_at(at_, length))) return stop(shortened);
   Event e;
   e.number = count_ + 1;
   e.offset = at_;
@@ -201,14 +225,8 @@ std::optional<LogReader::Event> LogReader::next() {
   const auto* body = h + kHeader;
   e.channel.assign(reinterpret_cast<const char*>(body), channel_len);
   e.data.assign(body + channel_len, body + channel_len + data_len);
-  at_ += kHeader + channel_len + data_len;
+  at_ += length;
   ++count_;
-  // The mapped pages behind the event just read are given back (a reader never reads back).
-  if (map_ && at_ - released_ >= kReleaseEvery) {
-    const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE)), upto = at_ / page * page;
-    ::madvise(static_cast<std::uint8_t*>(map_) + released_, upto - released_, MADV_DONTNEED);
-    released_ = upto;
-  }
   return e;
 }
 

@@ -133,16 +133,21 @@ class LogReader {
   const std::string& path() const { return path_; }
 
  private:
-  void check_start() const;
-  std::size_t next_event_start(std::size_t from) const;
+  static bool starts_a_log(const std::uint8_t* p, std::size_t n);
+  [[noreturn]] void not_a_log() const;
+  // The log's bytes [pos, pos + n), n <= size_ - pos; null when the file no longer has them (another program made
+  // it shorter since it was opened).
+  const std::uint8_t* bytes_at(std::size_t pos, std::size_t n);
+  std::size_t next_event_start(std::size_t from);
 
-  static constexpr std::size_t kReleaseEvery = std::size_t{64} << 20;  // [bytes]
+  // A regular file is read this much at a time (or one event, if larger), not mapped: a mapped file cut shorter by
+  // another program (logrotate's copytruncate) kills its reader with SIGBUS at the first page past the new end.
+  static constexpr std::size_t kWindow = std::size_t{8} << 20;  // [bytes]
   std::string path_;
-  std::vector<std::uint8_t> bytes_;  // the log in memory (given as bytes, or a file that could not be mapped)
-  void* map_ = nullptr;              // or the file mapped (logs are read once, front to back)
-  std::size_t map_size_ = 0, released_ = 0;
-  const std::uint8_t* data_ = nullptr;  // the log: bytes_ or map_
-  std::size_t size_ = 0;
+  int fd_ = -1;                      // the regular file read a window at a time, or -1: the whole log in bytes_
+  std::vector<std::uint8_t> bytes_;  // the whole log (given as bytes, or read from a pipe), or the window read
+  std::size_t base_ = 0;             // where bytes_ starts in the log
+  std::size_t size_ = 0;             // the log's size (a file's when it was opened)
   std::size_t at_ = 0;
   std::uint64_t count_ = 0;
   std::string damage_;

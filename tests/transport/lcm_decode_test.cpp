@@ -329,7 +329,10 @@ class LogBytes : public ::testing::Test {
               ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".lcmlog"))
                 .string();
   }
-  void TearDown() override { std::filesystem::remove(path_); }
+  void TearDown() override {
+    std::filesystem::remove(path_);
+    std::filesystem::remove(path_ + ".fifo");
+  }
   // Writes the events and returns the file's bytes.
   template <class... Ts>
   Bytes log(const Ts&... records) {
@@ -440,6 +443,61 @@ TEST_F(LogBytes, AReRunRefusesASceneRecordWhoseTextMakesOtherBlocks) {
     EXPECT_STREQ(e.what(), "the scene record of generation 0 says 4 blocks, but its text makes 3");
   }
   EXPECT_EQ(session, nullptr);
+}
+
+// The reader on a file, which it reads a window of 8 MiB at a time: every event as written, one larger than the window
+// among them; from a pipe the same; and a file cut shorter by another program while it is read (logrotate's
+// copytruncate) ends the log as damage at the last whole event still in it, not with SIGBUS (as a mapped file did).
+TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
+  constexpr std::size_t kMiB = std::size_t{1} << 20;
+  std::vector<std::size_t> sizes(24, kMiB);
+  sizes[5] = 9 * kMiB + 7;  // larger than the window
+  {
+    transport::LogWriter w(path_);
+    for (std::size_t i = 0; i < sizes.size(); ++i)
+      w.write_bytes(transport::kEventChannel, static_cast<std::int64_t>(i), Bytes(sizes[i], static_cast<std::uint8_t>(i)),
+                    false);
+  }
+  const auto read_all = [&](transport::LogReader& r, std::size_t first) {
+    std::size_t i = first;
+    for (; auto e = r.next(); ++i) {
+      EXPECT_EQ(e->channel, transport::kEventChannel);
+      EXPECT_EQ(e->utime, static_cast<std::int64_t>(i));
+      EXPECT_EQ(e->number, i + 1);
+      EXPECT_EQ(e->data, Bytes(sizes[i], static_cast<std::uint8_t>(i))) << "event " << i + 1;
+    }
+    return i;
+  };
+  transport::LogReader file(path_);
+  EXPECT_EQ(read_all(file, 0), sizes.size());
+  EXPECT_EQ(file.damage(), "");
+
+  const std::string fifo = path_ + ".fifo";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  std::thread feed([&] {
+    std::ifstream from(path_, std::ios::binary);
+    std::ofstream(fifo, std::ios::binary) << from.rdbuf();
+  });
+  {
+    transport::LogReader pipe(fifo);
+    feed.join();
+    EXPECT_EQ(read_all(pipe, 0), sizes.size());
+    EXPECT_EQ(pipe.damage(), "");
+  }
+  std::filesystem::remove(fifo);
+
+  // Event k starts at the sum of the ones before, each 28 bytes of header and the channel's name before its data.
+  const std::size_t header = 28 + std::strlen(transport::kEventChannel);
+  std::vector<std::size_t> start{0};
+  for (const std::size_t n : sizes) start.push_back(start.back() + header + n);
+  transport::LogReader cut(path_);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(cut.next());
+  const std::size_t kept = start[14] + 100;  // inside event 15 (the reader's window holds its first 8 MiB now)
+  ASSERT_EQ(truncate(path_.c_str(), static_cast<off_t>(kept)), 0);
+  EXPECT_EQ(read_all(cut, 3), 14u);
+  EXPECT_EQ(cut.damage(), "the log file became shorter while it was read (another program cut it), cutting off the event at byte " +
+                              std::to_string(start[14]) + ", after 14 complete events");
+  EXPECT_EQ(cut.damage_after(), 0u);
 }
 
 // LogWriter::sync (ladderd's ack waits on it): true once what was queued is written and flushed; on a file that
