@@ -206,7 +206,7 @@ void check_session(SessionLog& log, const Origins& at) {
              why);
   }
   for (std::size_t i = 0; i < log.states.size(); ++i) {
-    const ladderlcm::state_t& s = log.states[i];
+    const SessionLog::StateRecord& s = log.states[i];
     if (const auto why = check_step(gens, "state", s.generation, s.step, &s.sim_time); !why.empty())
       refuse(log, transport::kStateChannel, at.states[i], why);
     if (s.num_blocks != gens.at(s.generation).blocks)
@@ -232,9 +232,11 @@ void check_session(SessionLog& log, const Origins& at) {
   }
 }
 
-SessionLog read_events(transport::LogReader& reader) {
+SessionLog read_events(std::shared_ptr<transport::LogReader> from) {
+  transport::LogReader& reader = *from;
   SessionLog log;
   log.path = reader.path();
+  log.reader = std::move(from);
   Origins at;
   while (auto e = reader.next()) {
     const Origin o{e->number, e->offset};
@@ -245,7 +247,8 @@ SessionLog read_events(transport::LogReader& reader) {
       log.commands.push_back(reader.decode<ladderlcm::command_t>(*e));
       at.commands.push_back(o);
     } else if (e->channel == transport::kStateChannel) {
-      log.states.push_back(reader.decode<ladderlcm::state_t>(*e));
+      const auto s = reader.decode<ladderlcm::state_t>(*e);
+      log.states.push_back({s.generation, s.num_blocks, s.step, s.commands_applied, s.sim_time, e->number, e->offset});
       at.states.push_back(o);
     } else if (e->channel == transport::kCheckpointChannel) {
       log.checkpoints.push_back(reader.decode<ladderlcm::checkpoint_t>(*e));
@@ -270,13 +273,28 @@ SessionLog read_events(transport::LogReader& reader) {
 }  // namespace
 
 SessionLog read_session_log(const std::string& path) {
-  transport::LogReader reader(path);
-  return read_events(reader);
+  return read_events(std::make_shared<transport::LogReader>(path));
 }
 
 SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std::string& name) {
-  transport::LogReader reader(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), name);
-  return read_events(reader);
+  return read_events(std::make_shared<transport::LogReader>(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), name));
+}
+
+ladderlcm::state_t SessionLog::state(std::size_t i) const {
+  const StateRecord& r = states.at(i);
+  std::string why;
+  const auto e = reader->event_at(r.offset, r.event, why);
+  const auto changed = [&](const std::string& what) {
+    return std::runtime_error(path + ": event " + std::to_string(r.event) + " (" + transport::kStateChannel +
+                              " at byte " + std::to_string(r.offset) + ") changed since the log was read: " + what);
+  };
+  if (!e) throw changed(why);
+  if (e->channel != transport::kStateChannel) throw changed("it is now a " + e->channel + " record");
+  ladderlcm::state_t s = reader->decode<ladderlcm::state_t>(*e);
+  if (s.generation != r.generation || s.num_blocks != r.num_blocks || s.step != r.step ||
+      s.commands_applied != r.commands_applied || std::memcmp(&s.sim_time, &r.sim_time, sizeof s.sim_time) != 0)
+    throw changed("its generation, blocks, step, commands or time are not the ones read");
+  return s;
 }
 
 Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session, Until until,
@@ -396,7 +414,7 @@ Resimulation resimulate(const SessionLog& log, std::unique_ptr<Session>& session
   // A state or checkpoint: the first difference from the re-run's, or "".
   const auto differs = [&](const Mark& m) -> std::string {
     if (m.kind == kStateMark) {
-      const std::string d = compare(log.states[m.index], *session);
+      const std::string d = compare(log.state(m.index), *session);
       return d.empty() ? d : at(m.generation, m.step, time_of(m)) + ": " + d;
     }
     if (static_cast<std::int64_t>(session->state_hash()) == log.checkpoints[m.index].state_hash) return {};

@@ -14,6 +14,7 @@
 #include "ladderlcm/command_t.hpp"
 #include "ladderlcm/scene_t.hpp"
 #include "ladderlcm/state_t.hpp"
+#include "transport/lcm_log.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -30,7 +31,21 @@ struct SessionLog {
   std::string path;
   std::vector<ladderlcm::scene_t> scenes;          // in log order
   std::vector<ladderlcm::command_t> commands;      // in log order, which is command_seq's (checked)
-  std::vector<ladderlcm::state_t> states;          // in log order
+  // A state record: where it is in the log and what places it, for the checks and the re-run's order. The state
+  // itself is read from the log again when the re-run compares it (state()): a log of 10 000-block states is 300 KB
+  // a state, and holding every one decoded took more memory than the file's size.
+  struct StateRecord {
+    std::int32_t generation = 0, num_blocks = 0;
+    std::int64_t step = 0, commands_applied = 0;
+    double sim_time = 0;
+    std::uint64_t event = 0;  // its number in the log
+    std::size_t offset = 0;   // where it starts [bytes]
+  };
+  std::vector<StateRecord> states;  // in log order
+  // State record i, decoded from the log again. Throws std::runtime_error naming the event when the file no longer
+  // holds it (another program changed the log since it was read).
+  ladderlcm::state_t state(std::size_t i) const;
+  std::shared_ptr<transport::LogReader> reader;  // the log's reader, which state() reads with
   std::vector<ladderlcm::checkpoint_t> checkpoints;
   // Where the session paused itself: a step failed (`step`), or the state was found non-finite.
   struct Failure {

@@ -195,9 +195,32 @@ std::size_t LogReader::next_event_start(std::size_t from) {
   return size_;
 }
 
+std::optional<LogReader::Event> LogReader::event_at(std::size_t pos, std::uint64_t number, std::string& why) {
+  static const std::string shortened = "the log file became shorter while it was read (another program cut it), "
+                                       "cutting off the event";
+  if (pos >= size_ || size_ - pos < kHeader) return why = "the log is cut off in an event header", std::nullopt;
+  const std::uint8_t* h = bytes_at(pos, kHeader);
+  if (!h) return why = shortened, std::nullopt;
+  if (big_endian(h, 4) != 0xEDA1DA01u) return why = "no sync word where an event should start", std::nullopt;
+  const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
+  if (impossible_lengths(channel_len, data_len)) return why = "an impossible event length", std::nullopt;
+  if (size_ - pos - kHeader < channel_len + data_len) return why = "the log is cut off inside an event", std::nullopt;
+  if (!(h = bytes_at(pos, kHeader + channel_len + data_len))) return why = shortened, std::nullopt;
+  Event e;
+  e.number = number;
+  e.offset = pos;
+  e.utime = static_cast<std::int64_t>(big_endian(h + 12, 8));
+  const auto* body = h + kHeader;
+  e.channel.assign(reinterpret_cast<const char*>(body), channel_len);
+  e.data.assign(body + channel_len, body + channel_len + data_len);
+  return e;
+}
+
 std::optional<LogReader::Event> LogReader::next() {
   if (!damage_.empty() || at_ == size_) return std::nullopt;
-  const auto stop = [&](const std::string& why) {
+  std::string why;
+  std::optional<Event> e = event_at(at_, count_ + 1, why);
+  if (!e) {
     damage_ = why + " at byte " + std::to_string(at_) + ", after " + std::to_string(count_) + " complete events";
     // A log cut off (a server killed while writing) ends in its damage; one damaged in the middle has events after
     // it, which a reader that stops here does not see.
@@ -207,25 +230,8 @@ std::optional<LogReader::Event> LogReader::next() {
                  std::to_string(later) + " on are not read (the log is damaged in the middle, not cut off)";
     }
     return std::nullopt;
-  };
-  static const std::string shortened = "the log file became shorter while it was read (another program cut it), cutting off the event";
-  if (size_ - at_ < kHeader) return stop("the log is cut off in an event header");
-  const std::uint8_t* h = bytes_at(at_, kHeader);
-  if (!h) return stop(shortened);
-  if (big_endian(h, 4) != 0xEDA1DA01u) return stop("no sync word where an event should start");
-  const std::uint64_t channel_len = big_endian(h + 20, 4), data_len = big_endian(h + 24, 4);
-  if (impossible_lengths(channel_len, data_len)) return stop("an impossible event length");
-  if (size_ - at_ - kHeader < channel_len + data_len) return stop("the log is cut off inside an event");
-  const std::size_t length = kHeader + channel_len + data_len;
-  if (!(h = bytes_at(at_, length))) return stop(shortened);
-  Event e;
-  e.number = count_ + 1;
-  e.offset = at_;
-  e.utime = static_cast<std::int64_t>(big_endian(h + 12, 8));
-  const auto* body = h + kHeader;
-  e.channel.assign(reinterpret_cast<const char*>(body), channel_len);
-  e.data.assign(body + channel_len, body + channel_len + data_len);
-  at_ += length;
+  }
+  at_ += kHeader + e->channel.size() + e->data.size();
   ++count_;
   return e;
 }

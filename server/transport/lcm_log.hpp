@@ -115,6 +115,9 @@ class LogReader {
   LogReader& operator=(const LogReader&) = delete;
   // The next event, or nothing at the end of the log or where it is damaged or cut off.
   std::optional<Event> next();
+  // The event that next() returned as number `number` from byte `offset`, read again (a reader of a long log keeps
+  // where its records are rather than the records); nothing, with `why`, when the file no longer holds one there.
+  std::optional<Event> event_at(std::size_t offset, std::uint64_t number, std::string& why);
   // Empty, or what was wrong where reading stopped ("cut off in event 12 at byte 4096", ...).
   const std::string& damage() const { return damage_; }
   // The bytes of events after the damage (0 when the log is cut off there, as a killed server leaves it).

@@ -185,9 +185,10 @@ TEST_F(Record, RollingSessionResimulatesBitForBit) {
   EXPECT_EQ(log.commands.size(), 6u);
   ASSERT_GT(log.states.size(), 100u);
   EXPECT_GT(log.checkpoints.size(), 2u);
+  const ladderlcm::state_t first = log.state(0), last = log.state(log.states.size() - 1);
   for (std::size_t i = 2; i < 6; ++i)
-    EXPECT_LT(std::abs(log.states.front().theta[i]), 1e-3) << "block " << i << " does not hang straight";
-  EXPECT_GE(log.states.back().flips[1], 1) << "no ripple";
+    EXPECT_LT(std::abs(first.theta[i]), 1e-3) << "block " << i << " does not hang straight";
+  EXPECT_GE(last.flips[1], 1) << "no ripple";
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("identical to the last bit"), std::string::npos) << r.output;
@@ -224,22 +225,23 @@ TEST_F(Record, AfterKillNineTheLogReadsBackAndResumes) {
 
   const daemon::SessionLog log = daemon::read_session_log(log_);
   ASSERT_GE(log.checkpoints.size(), 2u);
-  const auto last = std::max_element(log.states.begin(), log.states.end(), [](const auto& a, const auto& b) {
+  const auto newest = std::max_element(log.states.begin(), log.states.end(), [](const auto& a, const auto& b) {
     return a.step < b.step;
   });
-  ASSERT_NE(last, log.states.end());
-  EXPECT_GT(last->step, log.checkpoints.back().step);  // the test shows something only if it ends past one
+  ASSERT_NE(newest, log.states.end());
+  const ladderlcm::state_t last = log.state(static_cast<std::size_t>(newest - log.states.begin()));
+  EXPECT_GT(last.step, log.checkpoints.back().step);  // the test shows something only if it ends past one
   const Result r = shell(kLadderd + " --offline --resimulate " + log_);
   EXPECT_EQ(r.code, 0) << r.output;
 
   const auto s = resume_from_log();
   ASSERT_TRUE(s.has_value());
-  EXPECT_EQ(s->step, static_cast<std::uint64_t>(last->step));
-  EXPECT_EQ(s->sim_time, last->sim_time);
-  ASSERT_EQ(s->blocks.size(), last->x.size());
+  EXPECT_EQ(s->step, static_cast<std::uint64_t>(last.step));
+  EXPECT_EQ(s->sim_time, last.sim_time);
+  ASSERT_EQ(s->blocks.size(), last.x.size());
   for (std::size_t i = 0; i < s->blocks.size(); ++i) {
-    EXPECT_EQ(s->blocks[i].x, last->x[i]) << "block " << i;
-    EXPECT_EQ(s->blocks[i].theta, last->theta[i]) << "block " << i;
+    EXPECT_EQ(s->blocks[i].x, last.x[i]) << "block " << i;
+    EXPECT_EQ(s->blocks[i].theta, last.theta[i]) << "block " << i;
   }
   EXPECT_EQ(s->commands_applied, 1u);  // the tip, numbered on from the log
   EXPECT_NE(server_->log().find("resumed from"), std::string::npos) << server_->log();
@@ -268,12 +270,13 @@ TEST_F(Record, ReplayRepublishesTheRecordedStates) {
   const auto s = viewer.wait_state([](const client::State& st) { return st.sim_time > 0.8; }, Millis(20000));
   ASSERT_TRUE(s.has_value());
   EXPECT_GE(viewer.latest_state()->sim_time, 0.5);
-  const auto recorded = std::find_if(log.states.begin(), log.states.end(),
-                                     [&](const ladderlcm::state_t& r) { return r.step == static_cast<std::int64_t>(s->step); });
-  ASSERT_NE(recorded, log.states.end());
+  const auto found = std::find_if(log.states.begin(), log.states.end(),
+                                  [&](const auto& r) { return r.step == static_cast<std::int64_t>(s->step); });
+  ASSERT_NE(found, log.states.end());
+  const ladderlcm::state_t recorded = log.state(static_cast<std::size_t>(found - log.states.begin()));
   for (std::size_t i = 0; i < 6; ++i) {
-    EXPECT_EQ(s->blocks[i].x, recorded->x[i]) << "block " << i;
-    EXPECT_EQ(s->blocks[i].theta, recorded->theta[i]) << "block " << i;
+    EXPECT_EQ(s->blocks[i].x, recorded.x[i]) << "block " << i;
+    EXPECT_EQ(s->blocks[i].theta, recorded.theta[i]) << "block " << i;
   }
 }
 

@@ -500,6 +500,38 @@ TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
   EXPECT_EQ(cut.damage_after(), 0u);
 }
 
+// A re-run reads each state from the log again when it compares it (the log read keeps where its states are, not
+// the states): a log that another program cut shorter after it was read is refused at the first state it lost,
+// named, and not read past its end. (The states lie 9 MiB apart, so that the first is no longer in the reader's
+// window when the re-run comes to it.)
+TEST_F(LogBytes, AReRunOfALogCutShorterAfterItWasReadNamesTheStateItLost) {
+  {
+    transport::LogWriter w(path_);
+    w.write(transport::kSceneChannel, 1, a_scene(), false);
+    w.write(transport::kStateChannel, 2, a_state(), false);
+    w.write_bytes("PADDING", 3, Bytes(std::size_t{9} << 20, 0), false);  // a channel the re-run does not read
+    w.write(transport::kStateChannel, 4, a_state(3, 20, 0.02), false);
+  }
+  const daemon::SessionLog parsed = daemon::read_session_log(path_);
+  ASSERT_EQ(parsed.states.size(), 2u);
+  EXPECT_EQ(parsed.state(1).theta, a_state().theta);
+  EXPECT_EQ(parsed.state(0).x, a_state().x);
+  EXPECT_EQ(parsed.states[1].step, 20);
+  const std::size_t first = parsed.states[0].offset;
+  EXPECT_EQ(first, 28 + std::strlen(transport::kSceneChannel) + encode(a_scene()).size());
+  ASSERT_EQ(parsed.state(1).step, 20);  // the reader's window is now at the second state
+  ASSERT_EQ(truncate(path_.c_str(), static_cast<off_t>(first + 40)), 0);
+  std::unique_ptr<daemon::Session> session;
+  try {
+    daemon::resimulate(parsed, session);
+    ADD_FAILURE() << "re-run";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), path_ + ": event 2 (LADDER_STATE at byte " + std::to_string(first) +
+                                         ") changed since the log was read: the log file became shorter while it "
+                                         "was read (another program cut it), cutting off the event");
+  }
+}
+
 // LogWriter::sync (ladderd's ack waits on it): true once what was queued is written and flushed; on a file that
 // takes nothing (a FIFO nobody reads), false after the timeout, then false at once until the writer catches up,
 // and true again after.
