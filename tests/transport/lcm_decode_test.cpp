@@ -446,8 +446,9 @@ TEST_F(LogBytes, AReRunRefusesASceneRecordWhoseTextMakesOtherBlocks) {
 }
 
 // The reader on a file, which it reads a window of 8 MiB at a time: every event as written, one larger than the window
-// among them; from a pipe the same; and a file cut shorter by another program while it is read (logrotate's
-// copytruncate) ends the log as damage at the last whole event still in it, not with SIGBUS (as a mapped file did).
+// among them; from a pipe the same; damage in the middle found to go on past the window it was met in; and a file
+// cut shorter by another program while it is read (logrotate's copytruncate) ends the log as damage at the last
+// whole event still in it, not with SIGBUS (as a mapped file did).
 TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
   constexpr std::size_t kMiB = std::size_t{1} << 20;
   std::vector<std::size_t> sizes(24, kMiB);
@@ -490,6 +491,29 @@ TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
   const std::size_t header = 28 + std::strlen(transport::kEventChannel);
   std::vector<std::size_t> start{0};
   for (const std::size_t n : sizes) start.push_back(start.back() + header + n);
+  // Damage in the middle: the reader stops there, and finds where the events go on across its windows (the sync
+  // word of event 6, the 9 MiB one, is broken: the next event starts 9 MiB on, past the window it stopped in), as on
+  // the same bytes in memory.
+  const auto set_byte = [&](std::size_t at, char c) {
+    std::fstream f(path_, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(static_cast<std::streamoff>(at));
+    f.put(c);
+  };
+  set_byte(start[5], 0x00);
+  const std::string damage = "no sync word where an event should start at byte " + std::to_string(start[5]) +
+                             ", after 5 complete events, and the log goes on: " +
+                             std::to_string(start.back() - start[6]) + " bytes of events from byte " +
+                             std::to_string(start[6]) +
+                             " on are not read (the log is damaged in the middle, not cut off)";
+  transport::LogReader damaged(path_);
+  EXPECT_EQ(read_all(damaged, 0), 5u);
+  EXPECT_EQ(damaged.damage(), damage);
+  std::ifstream in(path_, std::ios::binary);
+  transport::LogReader in_memory(Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()), "mem");
+  EXPECT_EQ(read_all(in_memory, 0), 5u);
+  EXPECT_EQ(in_memory.damage(), damage);
+  set_byte(start[5], static_cast<char>(0xED));
+
   transport::LogReader cut(path_);
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(cut.next());
   const std::size_t kept = start[14] + 100;  // inside event 15 (the reader's window holds its first 8 MiB now)
