@@ -57,19 +57,21 @@ class BlockTridiag {
   // mid) and downward(mid, x, done) finish the two halves, again concurrently. The row callbacks are factor_forward()'s
   // (factor_up() calls them for k = n-1 down to mid). The arithmetic differs from the one-sided elimination's in
   // rounding only, and does not depend on whether the halves run concurrently.
+  // With `from`, rows [from, end) alone, as a system of their own (row from's coupling to row from - 1 is not read:
+  // the unknowns of the rows outside are held, which is how the midpoint step solves a window of a chain).
   template <class RowFn>
-  int factor_down(int end, RowFn&& row, std::vector<Vec2>& z) {
+  int factor_down(int end, RowFn&& row, std::vector<Vec2>& z, int from = 0) {
     int regularised = 0;
     Mat2 d, u_prev;
     Vec2 b;
-    for (int k = 0; k < end; ++k) {
+    for (int k = from; k < end; ++k) {
       row(k, d, lower[k], u_prev, b);
-      if (k > 0) {
+      if (k > from) {
         gain_[k - 1].noalias() = schur_inv_[k - 1] * u_prev;
         d.noalias() -= lower[k] * gain_[k - 1];
       }
       regularised += invert(d, schur_inv_[k]) ? 1 : 0;
-      if (k > 0) b.noalias() -= lower[k] * z[k - 1];
+      if (k > from) b.noalias() -= lower[k] * z[k - 1];
       z[k].noalias() = schur_inv_[k] * b;
     }
     return regularised;
@@ -196,13 +198,14 @@ class BlockTridiag {
   }
 
   // Backward substitution x_k = z_k - S_k^-1 U_k x_{k+1} for k = n-1..0, in place, calling done(k) as soon as x_k
-  // is final (x_{k+1} is final too by then). With `end`, for k = end-1..0 (x_{end-1} being final: meet()).
+  // is final (x_{k+1} is final too by then). With `end`, for k = end-1..0 (x_{end-1} being final: meet()); with
+  // `from`, down to k = from (after factor_down(end, row, z, from)).
   template <class Done>
-  void backward(std::vector<Vec2>& x, Done&& done, int end = -1) const {
+  void backward(std::vector<Vec2>& x, Done&& done, int end = -1, int from = 0) const {
     const int n = end >= 0 ? end : size();
-    if (n == 0) return;
+    if (n <= from) return;
     done(n - 1);
-    for (int k = n - 2; k >= 0; --k) {
+    for (int k = n - 2; k >= from; --k) {
       x[k].noalias() -= gain_[k] * x[k + 1];
       done(k);
     }

@@ -141,6 +141,22 @@ constexpr std::array<double, 5> kRescueSecond = {0.25, 0.5, 0.7, 0.85, 0.95};
 constexpr double kRemainderShare = 1e-2;
 constexpr double kSpinRemainderShare = 0.25;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// A window of a chain (docs/model.md section 3.1). A Newton pass measures where its rows short of the tolerances (a gap
+// beyond it by more than rounding, or a body's angular residual above its line) lie. When they lie in one stretch
+// that, with kWindowMargin rows and a quarter of its length more on each side, is at most kWindowShare of the rows
+// (the front of a whip or a ripple: the rest of the chain met its tolerances at the first guess), and the pass was an
+// exact Newton step (no turn stiffness floored, no correction limited: near the solution), the next passes solve that
+// window alone, as a system of its own, holding the impulses and turns outside it. A row outside depends on the
+// window only through a body it shares with the window's first or last row, so each window pass measures the two
+// rows beyond its edges too. What the opening pass's correction left of the outside rows' residuals is bounded as
+// newton_remainder bounds a whole step's, and a converged window ends the step as a step that ends on that bound does
+// (every gap measured at the end state); when the bound is not small enough, one whole pass measures every row
+// first. (Opened from inexact passes too, windows changed which iterate a whipping chain's cycling solves were
+// rescued from, and one step of the 10 000-block free chain was redone in halves.) Corner hinges without hinge
+// friction, users' forces or free bodies only (a rolling contact's or the friction's terms reach a body's
+// neighbour's turn), and chains of at least kWindowMinRows rows.
+constexpr int kWindowMinRows = 256, kWindowMargin = 32;
+constexpr double kWindowShare = 0.25;
 // A chain of at least World::kSplitRows rows is solved in two halves, one from each end (BlockTridiag's twisted use),
 // on two threads when the World may use them (Options::threads): each Newton pass then takes about half the time.
 // Shorter ones gain less than a hand-over costs. The halves are the same whether or not they run concurrently, so a
@@ -155,6 +171,11 @@ struct alignas(64) PassAcc {
   bool exact = true;                                       // newton_remainder's: no floored or limited turn
   double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
   int pivots = 0;                                          // regularised pivots
+  int bad_lo = std::numeric_limits<int>::max(), bad_hi = -1;  // the first and last rows short of the tolerances
+  void mark(int k) {
+    bad_lo = std::min(bad_lo, k);
+    bad_hi = std::max(bad_hi, k);
+  }
   void merge(const PassAcc& o) {
     worst_rho = std::max(worst_rho, o.worst_rho);
     worst_gap2 = std::max(worst_gap2, o.worst_gap2);
@@ -164,6 +185,8 @@ struct alignas(64) PassAcc {
     cross_max = std::max(cross_max, o.cross_max);
     lam_max2 = std::max(lam_max2, o.lam_max2);
     pivots += o.pivots;
+    bad_lo = std::min(bad_lo, o.bad_lo);
+    bad_hi = std::max(bad_hi, o.bad_hi);
   }
 };
 // The order a pass visits the rows in, which decides on which side a rolling row's contact terms are computed
@@ -485,6 +508,10 @@ void World::step_midpoint(double h) {
     const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
     const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * bodies_[i].gyration;
     acc.worst_rho = std::isfinite(rho_excess) ? std::max(acc.worst_rho, rho_excess) : kInfinity;
+    if (!(rho_excess <= kRhoShare * tol)) {  // (a window's bounds: below)
+      if (prev >= 0) acc.mark(prev);
+      if (next >= 0) acc.mark(next);
+    }
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
   // With `track` (std::true_type) it records what newton_remainder needs; dl is the sum of the 1-norms of the
@@ -516,6 +543,25 @@ void World::step_midpoint(double h) {
   int far_rescues = 0;  // the far rescues tried: from shorter steps (kRescueFirst, then kRescueSecond), then long
   bool expect_converged = m.guess_odds.expect_right();
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
+  // A window: rows [win_lo, win_hi] solved alone while the others hold (kWindowShare above); -1 when passes are whole.
+  const bool may_window = options_.windows && !forced && cf == 0 && loose_bodies_.empty() && static_cast<int>(n) >= kWindowMinRows;
+  int win_lo = -1, win_hi = -1;
+  bool window_used = false;  // at most one window a step
+  PassAcc edge;              // what a window pass measures of the two rows beyond its edges
+  // A bound of the angular residual the rows outside the window are left with (kInfinity: none, and a whole pass
+  // measures them once the window has converged).
+  double outside_rho = kInfinity;
+  // The window a pass's measure opens, or false (kWindowShare).
+  const auto open_window = [&](const PassAcc& a) {
+    if (!may_window || window_used || three || a.bad_hi < 0) return false;
+    const int width = a.bad_hi - a.bad_lo + 1, margin = kWindowMargin + width / 4;
+    const int lo = std::max(a.bad_lo - margin, 0), hi = std::min(a.bad_hi + margin, static_cast<int>(n) - 1);
+    if (hi - lo + 1 > kWindowShare * static_cast<double>(n)) return false;
+    win_lo = lo, win_hi = hi;
+    window_used = true;
+    st.window_lo = lo, st.window_hi = hi;
+    return true;
+  };
   for (int iteration = 0;; ++iteration) {
     lane[0] = lane[1] = PassAcc{};
     if (forced) {  // the users' forces' moments at their midpoint levers, and their loads along the end levers
@@ -577,6 +623,10 @@ void World::step_midpoint(double h) {
       const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
       const Vec2 gap = pa - pb;
       count_gap(gap, pa, pb, acc);
+      // (short: beyond the tolerance by more than rounding, as count_gap measures it)
+      if (const double gap2 = gap.squaredNorm(); gap2 > tol * tol && std::sqrt(gap2) - 8 * kEpsilon *
+          (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff()) > tol)
+        acc.mark(k);
       return gap;
     };
     // The same, then the row's Newton blocks, for BlockTridiag's factorisation.
@@ -670,7 +720,32 @@ void World::step_midpoint(double h) {
     // only if it falls short: a pass with a third to a half of the arithmetic of a full one. Either way the same
     // values are computed.
     bool checked = false;
-    if (expect_converged) {
+    // A window's pass: its rows built, factored and forward-substituted as a system of their own (its edge rows'
+    // neighbours outside are held: their corrections are zero), with the two rows beyond its edges measured.
+    const auto window_pass = [&] {
+      if (newton_.size() != static_cast<int>(n)) newton_.resize(static_cast<int>(n));
+      ++st.window_passes;
+      const int saved_skip = std::exchange(skip, -1);  // (a whole pass's split plays no part)
+      edge = PassAcc{};
+      if (win_lo > 0) {
+        m.dlam[static_cast<size_t>(win_lo - 1)].setZero();
+        residual_row(win_lo - 1, edge, std::true_type{}, FromTop{});
+        const Row& r = rows_[static_cast<size_t>(win_lo)];  // its body b, the first row's body a, is the window's
+        if (r.link_prev && !bodies_[r.a].kinematic)
+          finish_body(r.a, win_lo - 1, win_lo, lane[0], std::true_type{}, FromTop{});
+      }
+      const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
+      lane[0].pivots += newton_.factor_down(win_hi + 1, top, m.dlam, win_lo);
+      if (win_hi + 1 < static_cast<int>(n)) {
+        m.dlam[static_cast<size_t>(win_hi + 1)].setZero();
+        residual_row(win_hi + 1, edge, std::false_type{}, FromTop{});
+      }
+      skip = saved_skip;
+    };
+    const bool windowed = win_lo >= 0;
+    if (windowed) {
+      window_pass();
+    } else if (expect_converged) {
       if (split == 0) {
         for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
       } else {
@@ -691,7 +766,7 @@ void World::step_midpoint(double h) {
         ++st.short_checks;
       }
     }
-    if (!checked) {
+    if (!checked && !windowed) {
       for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{}, FromTop{});
       if (n > 0) newton_pass();
       lane[0].merge(lane[1]);
@@ -705,6 +780,22 @@ void World::step_midpoint(double h) {
     st.angular_residual = worst_rho;
     const bool stalled = worst_rho > kStall * last_rho;
     last_rho = worst_rho;
+    if (windowed) {
+      const bool settled = !(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled));
+      if (settled || !std::isfinite(worst_gap) || !std::isfinite(worst_rho) || iteration >= limit) {
+        win_lo = win_hi = -1;  // whole passes again (or the rescue's, below)
+        const bool edges = !(std::sqrt(edge.worst_gap2) > tol) && !(edge.worst_rho > kRhoShare * tol);
+        if (settled && edges && outside_rho < kInfinity) {  // the rows outside, on the bound
+          predicted = true;  // (the gaps are measured at the end state, below)
+          st.angular_residual = std::max({worst_rho, edge.worst_rho, outside_rho});
+          break;
+        }
+        if (settled) {  // every row measured once more (the residual alone if the edges' rows were within tolerance)
+          expect_converged = edges;
+          continue;
+        }
+      }
+    }
     if (!(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled))) {
       st.converged = true;
       final_gap = worst_gap;
@@ -759,7 +850,7 @@ void World::step_midpoint(double h) {
     const auto done2 = [&](int k, auto track, PassAcc& acc, auto side) HOT_INLINE {
       constexpr bool kTrack = decltype(track)::value;
       const Row& r = rows_[static_cast<size_t>(k)];
-      if (split == 0 || k != split) m.lam[k] += m.dlam[k];
+      if (split == 0 || k != split || windowed) m.lam[k] += m.dlam[k];
       if constexpr (decltype(side)::value == FromTop::value) {
         if (!bodies_[r.b].kinematic) correct_body(r.b, k, r.shares_next ? k + 1 : -1, track, acc);
         if (!r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, -1, k, track, acc);
@@ -796,12 +887,23 @@ void World::step_midpoint(double h) {
       }
       if constexpr (kTrack) final_row(k, acc, side);
     };
+    // The window opening after this pass (`opening`): the corrections of the rows outside it are tracked apart
+    // (`out`), for the bound of what they leave.
+    bool opening = false;
+    PassAcc out[2];
+    const auto region = [&](int k, int l) -> PassAcc& {
+      return opening && (k < win_lo || k > win_hi) ? out[l] : lane[l];
+    };
     const auto update = [&](auto track) HOT_INLINE {
-      if (n > 0 && split == 0) {
+      if (windowed) {  // the window's rows, and its first row's body a (a whole pass corrects it with the row before)
+        newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); }, win_hi + 1, win_lo);
+        const Row& r = rows_[static_cast<size_t>(win_lo)];
+        if (r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, win_lo - 1, win_lo, track, lane[0]);
+      } else if (n > 0 && split == 0) {
         if (three)
           m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); });
         else
-          newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); });
+          newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0), FromTop{}); });
       } else if (n > 0) {
         // The shared body's turn needs row split's impulse final (lane 0 corrects it): applied first.
         m.lam[split] += three ? Vec2(m.dx[split].head<2>()) : m.dlam[split];
@@ -810,12 +912,12 @@ void World::step_midpoint(double h) {
             if (three)
               m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); }, split);
             else
-              newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); }, split);
+              newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0), FromTop{}); }, split);
           } else {
             if (three)
               m.newton3.downward(split, m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[1], FromBottom{}); });
             else
-              newton_.downward(split, m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[1], FromBottom{}); });
+              newton_.downward(split, m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 1), FromBottom{}); });
           }
         });
       }
@@ -826,12 +928,35 @@ void World::step_midpoint(double h) {
     };
     // lane[0] still holds this iterate's exact (a floored turn stiffness); the tracking starts afresh.
     lane[0].dt_max = lane[0].cross_max = lane[0].lam_max2 = 0;
-    const bool track = expect_converged && lane[0].exact && !forced && (cf == 0 || three);
+    // A window opens after a whole Newton pass whose rows short of the tolerances lie in one short stretch
+    // (kWindowShare above), its corrections tracked for the bound of what they leave outside it.
+    const PassAcc measured = lane[0];
+    opening = !windowed && !checked && measured.exact && open_window(measured);
+    const bool track =
+        (expect_converged && lane[0].exact && !forced && (cf == 0 || three) && !windowed) || opening;
     if (track)
       update(std::true_type{});
     else
       update(std::false_type{});
     lane[0].merge(lane[1]);
+    if (opening) {  // the bound of the rows outside alone; then the whole pass's (below), which may end the step
+      out[0].merge(out[1]);
+      const PassAcc& o = out[0];
+      if (!(lane[0].exact && o.exact)) {  // a correction limited: far from the solution, no window (see above)
+        win_lo = win_hi = st.window_lo = st.window_hi = -1;
+        window_used = false;
+      } else {
+        const double gap_bound = 2 * 10.6 * lever * o.dt_max * o.dt_max;
+        const double rho_bound =
+            2 * spin_gyration * lever * (10.6 * std::sqrt(o.lam_max2) * o.dt_max * o.dt_max + 1.5 * o.cross_max);
+        if (gap_bound <= kRemainderShare * tol && rho_bound <= kSpinRemainderShare * kRhoShare * tol)
+          outside_rho = rho_bound;
+      }
+      lane[0].exact = lane[0].exact && o.exact;
+      lane[0].dt_max = std::max(lane[0].dt_max, o.dt_max);
+      lane[0].cross_max = std::max(lane[0].cross_max, o.cross_max);
+      lane[0].lam_max2 = std::max(lane[0].lam_max2, o.lam_max2);
+    }
     const bool exact = lane[0].exact;
     const double dt_max = lane[0].dt_max, cross_max = lane[0].cross_max, lam_max2 = lane[0].lam_max2;
     ++st.iterations;

@@ -75,6 +75,9 @@ struct Options {
   // Threads a step may use: 2 lets the midpoint step solve a long chain's two halves at once (World::kSplitRows,
   // docs/model.md section 3.2). The results are the same bits with 1 or 2.
   int threads = 2;
+  // The midpoint step's windows: after a whole Newton pass, a long chain's rows short of the tolerances in one short
+  // stretch are solved alone (docs/model.md section 3.1). Off: whole passes only (the tests' and benchmarks' reference).
+  bool windows = true;
 };
 
 // Prescribed motion of a kinematic part (a held block): pose, velocity and acceleration at time t.
@@ -177,6 +180,10 @@ struct StepStats {
   // odds, MidpointWork::GuessOdds, or an iterate near the tolerance), and those of them that found it was not, so that
   // a full Newton pass followed: the cost of a wrong expectation.
   int checks = 0, short_checks = 0;
+  // Midpoint passes over a window of the rows alone, after a whole pass found the rows short of the tolerances in
+  // one short stretch (docs/model.md section 3.1).
+  int window_passes = 0;
+  int window_lo = -1, window_hi = -1;  // the rows of the step's window, when it had one (-1: none)
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
   // residual, converged only if both were.
@@ -192,6 +199,8 @@ struct StepStats {
     rescues += s.rescues;
     checks += s.checks;
     short_checks += s.short_checks;
+    window_passes += s.window_passes;
+    if (s.window_lo >= 0) window_lo = s.window_lo, window_hi = s.window_hi;
   }
 };
 
