@@ -544,7 +544,8 @@ void World::step_midpoint(double h) {
   bool expect_converged = m.guess_odds.expect_right();
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   // A window: rows [win_lo, win_hi] solved alone while the others hold (kWindowShare above); -1 when passes are whole.
-  const bool may_window = options_.windows && !forced && cf == 0 && loose_bodies_.empty() && static_cast<int>(n) >= kWindowMinRows;
+  const bool may_window =
+      options_.windows && !forced && cf == 0 && loose_bodies_.empty() && static_cast<int>(n) >= kWindowMinRows;
   int win_lo = -1, win_hi = -1;
   bool window_used = false;  // at most one window a step
   PassAcc edge;              // what a window pass measures of the two rows beyond its edges
@@ -559,7 +560,6 @@ void World::step_midpoint(double h) {
     if (hi - lo + 1 > kWindowShare * static_cast<double>(n)) return false;
     win_lo = lo, win_hi = hi;
     window_used = true;
-    st.window_lo = lo, st.window_hi = hi;
     return true;
   };
   for (int iteration = 0;; ++iteration) {
@@ -725,6 +725,7 @@ void World::step_midpoint(double h) {
     const auto window_pass = [&] {
       if (newton_.size() != static_cast<int>(n)) newton_.resize(static_cast<int>(n));
       ++st.window_passes;
+      st.window_lo = win_lo, st.window_hi = win_hi;
       const int saved_skip = std::exchange(skip, -1);  // (a whole pass's split plays no part)
       edge = PassAcc{};
       if (win_lo > 0) {
@@ -943,7 +944,7 @@ void World::step_midpoint(double h) {
       out[0].merge(out[1]);
       const PassAcc& o = out[0];
       if (!(lane[0].exact && o.exact)) {  // a correction limited: far from the solution, no window (see above)
-        win_lo = win_hi = st.window_lo = st.window_hi = -1;
+        win_lo = win_hi = -1;
         window_used = false;
       } else {
         const double gap_bound = 2 * 10.6 * lever * o.dt_max * o.dt_max;

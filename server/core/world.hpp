@@ -76,7 +76,7 @@ struct Options {
   // docs/model.md section 3.2). The results are the same bits with 1 or 2.
   int threads = 2;
   // The midpoint step's windows: after a whole Newton pass, a long chain's rows short of the tolerances in one short
-  // stretch are solved alone (docs/model.md section 3.1). Off: whole passes only (the tests' and benchmarks' reference).
+  // stretch are solved alone (docs/model.md section 3.1). Off: whole passes only (a reference for tests, benchmarks).
   bool windows = true;
 };
 

@@ -306,13 +306,13 @@ TEST(Blocks, TenThousandTippedAtOneMillisecond) {
   EXPECT_TRUE(sim.ladder().world().finite());
 }
 
-// The stability sweep on the shipped free chain (pinned at its top, from its straight start: it falls, swings and
-// whips under the tension of the blocks below), at 1000 and 10 000 blocks for 2 s at 1 ms with the defaults: no step
-// redone in halves or failed (no solver_warning), nothing non-finite, the hinges closed below 1e-9 m, and the
-// undamped chain's energy (-5.9e3 and -5.9e5 J) kept to 1e-6 J (measured 3.5e-10 and 2.4e-8 J: the midpoint step
-// keeps it to the solver's tolerance). The whip's solves that the iteration limit cuts short (42 at 10 000 blocks)
-// are rescued within their step (docs/model.md section 3.1). With windows of the chain opened from inexact passes
-// too, one step at 10 000 blocks was redone in halves (docs/benchmarks.md, "Thirteenth round"). At 100 000 blocks one step is redone in halves
+// The stability sweep on the shipped free chain (pinned at its top, from its straight start: it falls, swings and whips
+// under the tension of the blocks below), at 1000 and 10 000 blocks for 2 s at 1 ms with the defaults: no step redone
+// in halves or failed (no solver_warning), nothing non-finite, the hinges closed below 1e-9 m, and the undamped chain's
+// energy (-5.9e3 and -5.9e5 J) kept to 1e-6 J (measured 3.5e-10 and 2.4e-8 J: the midpoint step keeps it to the
+// solver's tolerance). The whip's solves that the iteration limit cuts short (42 at 10 000 blocks) are rescued within
+// their step (docs/model.md section 3.1). With windows of the chain opened from inexact passes too, one step at 10 000
+// blocks was redone in halves (docs/benchmarks.md, "Thirteenth round"). At 100 000 blocks one step is redone in halves
 // (docs/benchmarks.md, "The sweep again"); that run takes minutes and is not a test. Under AddressSanitizer the
 // 10 000-block chain runs 0.3 s.
 TEST(Blocks, FreeChainWhipsWithNoStepRedone) {
@@ -335,12 +335,13 @@ TEST(Blocks, FreeChainWhipsWithNoStepRedone) {
 }
 
 // A window of the chain (docs/model.md section 3.1) solves the same steps as whole passes, to the solver's tolerance.
-// The free chain of 3000 blocks (solved in two halves; its whip's front in the top one) from its straight start for
-// 0.15 s, and the classic ladder of 3000 blocks through its tip at 0.5 s to 0.7 s, each with windows and without from
-// the same start: windows open (at least one window pass a step on average over the moving part), no solver warning,
-// the hinges closed below 1e-9 m, and every block's centre and angle agree with the whole passes' to 1e-10 m and
-// 1e-9 rad at the end (measured: 1.5e-13 m and 6.8e-12 rad, 2.2e-13 m and 3.1e-12 rad, 2.0e-12 m and 4.8e-11 rad). And the classic ladder hanging at rest, poked at block
-// 1500 (its timeline left out), for 0.1 s: a window in the middle of the chain, with rows outside it on both sides.
+// Three chains of 3000 blocks, each with windows and without from the same start: the free chain (solved in two halves;
+// its whip's front in the top one) from its straight start for 0.15 s; the classic ladder through its tip at 0.5 s to
+// 0.7 s; and the classic ladder hanging at rest, poked at block 1500 (its timeline left out), for 0.1 s, a window in
+// the middle of the chain with rows outside it on both sides. Windows open (at least one window pass a step on
+// average over the moving part), no solver warning, the hinges closed below 1e-9 m, and every block's centre and
+// angle agree with the whole passes' to 1e-10 m and 1e-9 rad at the end (measured: 1.5e-13 m and 6.8e-12 rad,
+// 2.2e-13 m and 3.1e-12 rad, 2.0e-12 m and 4.8e-11 rad).
 void expect_windows_solve_as_whole_passes(const std::string& scene, double from, double until, int poked = -1) {
   const auto make = [&](bool windows) {
     scene::Scene sc = shipped(scene, {"ladder.blocks=3000"});
