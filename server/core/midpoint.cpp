@@ -405,15 +405,17 @@ void World::step_midpoint(double h) {
   };
   // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
   // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. The
-  // excess is at most the gap, so a gap no larger than the worst excess so far leaves it as it is, and its square
-  // root and floor are not computed (a NaN or infinite gap always is).
-  const auto count_gap = [](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc) HOT_INLINE {
+  // excess is at most the gap, so a gap no larger than the worst excess so far, nor than the tolerance, leaves it as it
+  // is, and its square root and floor are not computed (a NaN or infinite gap always is). An excess beyond the
+  // tolerance marks row k short (PassAcc::mark: a window's bounds).
+  const auto count_gap = [tol](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k) HOT_INLINE {
     const double gap2 = gap.squaredNorm();
     acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
-    if (gap2 <= acc.worst_gap2) return;
+    if (gap2 <= acc.worst_gap2 && gap2 <= tol * tol) return;
     const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
     const double excess = std::max(std::sqrt(gap2) - floor, 0.0);
     acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
+    if (!(excess <= tol)) acc.mark(k);
   };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
@@ -552,6 +554,10 @@ void World::step_midpoint(double h) {
   // A bound of the angular residual the rows outside the window are left with (kInfinity: none, and a whole pass
   // measures them once the window has converged).
   double outside_rho = kInfinity;
+  // Whether a pass measured every row and body it saw within the tolerances.
+  const auto within = [&](const PassAcc& a) {
+    return !(std::sqrt(a.worst_gap2) > tol) && !(a.worst_rho > kRhoShare * tol);
+  };
   // The window a pass's measure opens, or false (kWindowShare).
   const auto open_window = [&](const PassAcc& a) {
     if (!may_window || window_used || three || a.bad_hi < 0) return false;
@@ -622,11 +628,7 @@ void World::step_midpoint(double h) {
       const Vec2 pa = ak ? Vec2(a.x + m.end_a[k]) : Vec2(a.x + h * (a.v + m.vbar[r.a]) + m.end_a[k]);
       const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
       const Vec2 gap = pa - pb;
-      count_gap(gap, pa, pb, acc);
-      // (short: beyond the tolerance by more than rounding, as count_gap measures it)
-      if (const double gap2 = gap.squaredNorm(); gap2 > tol * tol && std::sqrt(gap2) - 8 * kEpsilon *
-          (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff()) > tol)
-        acc.mark(k);
+      count_gap(gap, pa, pb, acc, k);
       return gap;
     };
     // The same, then the row's Newton blocks, for BlockTridiag's factorisation.
@@ -760,7 +762,7 @@ void World::step_midpoint(double h) {
         });
       }
       lane[0].merge(lane[1]);
-      checked = !(std::sqrt(lane[0].worst_gap2) > tol) && !(lane[0].worst_rho > kRhoShare * tol);
+      checked = within(lane[0]);
       ++st.checks;
       if (!checked) {
         lane[0] = lane[1] = PassAcc{};
@@ -781,11 +783,12 @@ void World::step_midpoint(double h) {
     st.angular_residual = worst_rho;
     const bool stalled = worst_rho > kStall * last_rho;
     last_rho = worst_rho;
+    // Converged (a body whose turn stiffness is floored may end at the tolerance itself: kStall).
+    const bool settled = !(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled));
     if (windowed) {
-      const bool settled = !(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled));
       if (settled || !std::isfinite(worst_gap) || !std::isfinite(worst_rho) || iteration >= limit) {
         win_lo = win_hi = -1;  // whole passes again (or the rescue's, below)
-        const bool edges = !(std::sqrt(edge.worst_gap2) > tol) && !(edge.worst_rho > kRhoShare * tol);
+        const bool edges = within(edge);
         if (settled && edges && outside_rho < kInfinity) {  // the rows outside, on the bound
           predicted = true;  // (the gaps are measured at the end state, below)
           st.angular_residual = std::max({worst_rho, edge.worst_rho, outside_rho});
@@ -797,7 +800,7 @@ void World::step_midpoint(double h) {
         }
       }
     }
-    if (!(worst_gap > tol) && (!(worst_rho > kRhoShare * tol) || (!(worst_rho > tol) && stalled))) {
+    if (settled) {
       st.converged = true;
       final_gap = worst_gap;
       break;
@@ -931,8 +934,7 @@ void World::step_midpoint(double h) {
     lane[0].dt_max = lane[0].cross_max = lane[0].lam_max2 = 0;
     // A window opens after a whole Newton pass whose rows short of the tolerances lie in one short stretch
     // (kWindowShare above), its corrections tracked for the bound of what they leave outside it.
-    const PassAcc measured = lane[0];
-    opening = !windowed && !checked && measured.exact && open_window(measured);
+    opening = !windowed && !checked && lane[0].exact && open_window(lane[0]);
     const bool track =
         (expect_converged && lane[0].exact && !forced && (cf == 0 || three) && !windowed) || opening;
     if (track)
@@ -953,10 +955,7 @@ void World::step_midpoint(double h) {
         if (gap_bound <= kRemainderShare * tol && rho_bound <= kSpinRemainderShare * kRhoShare * tol)
           outside_rho = rho_bound;
       }
-      lane[0].exact = lane[0].exact && o.exact;
-      lane[0].dt_max = std::max(lane[0].dt_max, o.dt_max);
-      lane[0].cross_max = std::max(lane[0].cross_max, o.cross_max);
-      lane[0].lam_max2 = std::max(lane[0].lam_max2, o.lam_max2);
+      lane[0].merge(o);  // (o holds tracked corrections alone)
     }
     const bool exact = lane[0].exact;
     const double dt_max = lane[0].dt_max, cross_max = lane[0].cross_max, lam_max2 = lane[0].lam_max2;
@@ -1075,7 +1074,7 @@ void World::step_midpoint(double h) {
           gap += (2 * roll_[k].radius) * u;
           m.roll_u0[k] = u;
         }
-        count_gap(gap, pa, pb, acc);
+        count_gap(gap, pa, pb, acc, static_cast<int>(k));
       }
     };
     lane[0] = lane[1] = PassAcc{};

@@ -277,7 +277,8 @@ SessionLog read_session_log(const std::string& path) {
 }
 
 SessionLog read_session_log_bytes(std::span<const std::uint8_t> bytes, const std::string& name) {
-  return read_events(std::make_shared<transport::LogReader>(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), name));
+  return read_events(
+      std::make_shared<transport::LogReader>(std::vector<std::uint8_t>(bytes.begin(), bytes.end()), name));
 }
 
 ladderlcm::state_t SessionLog::state(std::size_t i) const {

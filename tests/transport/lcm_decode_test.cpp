@@ -456,8 +456,8 @@ TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
   {
     transport::LogWriter w(path_);
     for (std::size_t i = 0; i < sizes.size(); ++i)
-      w.write_bytes(transport::kEventChannel, static_cast<std::int64_t>(i), Bytes(sizes[i], static_cast<std::uint8_t>(i)),
-                    false);
+      w.write_bytes(transport::kEventChannel, static_cast<std::int64_t>(i),
+                    Bytes(sizes[i], static_cast<std::uint8_t>(i)), false);
   }
   const auto read_all = [&](transport::LogReader& r, std::size_t first) {
     std::size_t i = first;
@@ -519,8 +519,9 @@ TEST_F(LogBytes, AFileIsReadInWindowsAndOneShortenedWhileItIsReadEndsAsDamage) {
   const std::size_t kept = start[14] + 100;  // inside event 15 (the reader's window holds its first 8 MiB now)
   ASSERT_EQ(truncate(path_.c_str(), static_cast<off_t>(kept)), 0);
   EXPECT_EQ(read_all(cut, 3), 14u);
-  EXPECT_EQ(cut.damage(), "the log file became shorter while it was read (another program cut it), cutting off the event at byte " +
-                              std::to_string(start[14]) + ", after 14 complete events");
+  EXPECT_EQ(cut.damage(),
+            "the log file became shorter while it was read (another program cut it), cutting off the event at byte " +
+                std::to_string(start[14]) + ", after 14 complete events");
   EXPECT_EQ(cut.damage_after(), 0u);
 }
 
