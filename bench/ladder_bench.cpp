@@ -22,8 +22,8 @@
 // (the last step's of each advance), the steps that ended on Newton's remainder bound instead of a measuring pass
 // (bound_ends/step, docs/model.md section 3.1), the passes that measured a first guess's residual alone before any
 // Newton pass (checks/step) and those that found it short (short_checks/step; MidpointWork::GuessOdds), the passes
-// over a window of the rows alone (window_passes/step, docs/model.md section 3.1), the largest hinge error after the
-// run [m] and the simulated time covered.
+// over a window of the rows alone (window_passes/step, docs/model.md section 3.1) and the windows opened at the first
+// guess (guess_windows/step), the largest hinge error after the run [m] and the simulated time covered.
 // Run: build/bench/ladder-bench [--threads 1|2] [--tolerance M] [--benchmark_filter=...]; docs/benchmarks.md records
 // the figures.
 // --threads sets solver.threads (default 2): a chain of 2048 hinges or more is stepped on two threads with 2
@@ -91,7 +91,7 @@ void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
   // a one-off that at N = 100 000 (about 130 MB) cost as much as 10 to 20 steps (docs/benchmarks.md, the twelfth
   // round), which the 30 timed steps there used to include.
   l->advance(1e-3);
-  double iterations = 0, bound_ends = 0, checks = 0, short_checks = 0, window_passes = 0;
+  double iterations = 0, bound_ends = 0, checks = 0, short_checks = 0, window_passes = 0, guess_windows = 0;
   for (auto _ : state) {
     l->advance(1e-3);
     const core::StepStats& st = l->world().last_step();
@@ -100,11 +100,13 @@ void run(benchmark::State& state, std::unique_ptr<model::Ladder> l, bool tip) {
     checks += st.checks;
     short_checks += st.short_checks;
     window_passes += st.window_passes;
+    guess_windows += st.guess_windows;
   }
   state.counters["bound_ends/step"] = bound_ends / static_cast<double>(state.iterations());
   state.counters["checks/step"] = checks / static_cast<double>(state.iterations());
   state.counters["short_checks/step"] = short_checks / static_cast<double>(state.iterations());
   state.counters["window_passes/step"] = window_passes / static_cast<double>(state.iterations());
+  state.counters["guess_windows/step"] = guess_windows / static_cast<double>(state.iterations());
   const double block_steps = static_cast<double>(state.iterations()) * n;
   state.counters["iterations/step"] = iterations / static_cast<double>(state.iterations());
   state.counters["block_steps/s"] = benchmark::Counter(block_steps, benchmark::Counter::kIsRate);

@@ -157,6 +157,18 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // neighbour's turn), and chains of at least kWindowMinRows rows.
 constexpr int kWindowMinRows = 256, kWindowMargin = 32;
 constexpr double kWindowShare = 0.25;
+// A window from the first guess (docs/model.md section 3.1): where the guess met the tolerances everywhere but in one
+// short stretch (the free chain's whip: the rows above its front), the step solves that window from the guess, after a
+// pass that measures the guess's residual alone, and takes no whole Newton step. Against a window opened after a whole
+// pass, that costs the check (a third of a whole pass) and about two window passes more (the 10 000-block free chain:
+// five window passes a step instead of three), and saves the whole pass: measured, it pays with windows of up to
+// kWindowShare of the rows, as the others. Where the window's solution opens the rows beyond its edges (a tipped
+// ladder: the tip changes the tension down the whole chain), whole passes must follow, and the try has cost the check
+// and the window's passes. A step tries when the last try succeeded; after a failed one (whole passes after the
+// window, or a check that found no window) it waits 1, 2, 4, ... steps, up to kGuessWindowWait, before the next.
+// Whether a step tries changes its bits, so the wait is saved in snapshots with the first guess
+// (World::guess_window_wait_).
+constexpr int kGuessWindowWait = 64;
 // A chain of at least World::kSplitRows rows is solved in two halves, one from each end (BlockTridiag's twisted use),
 // on two threads when the World may use them (Options::threads): each Newton pass then takes about half the time.
 // Shorter ones gain less than a hand-over costs. The halves are the same whether or not they run concurrently, so a
@@ -168,6 +180,7 @@ namespace {
 // and forth all through a pass.
 struct alignas(64) PassAcc {
   double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;  // the residuals (finish_body, count_gap)
+  double fine_rho = 0;  // the worst angular residual of the bodies within their line (a window from the first guess)
   bool exact = true;                                       // newton_remainder's: no floored or limited turn
   double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
   int pivots = 0;                                          // regularised pivots
@@ -178,6 +191,7 @@ struct alignas(64) PassAcc {
   }
   void merge(const PassAcc& o) {
     worst_rho = std::max(worst_rho, o.worst_rho);
+    fine_rho = std::max(fine_rho, o.fine_rho);
     worst_gap2 = std::max(worst_gap2, o.worst_gap2);
     largest_gap2 = std::max(largest_gap2, o.largest_gap2);
     exact = exact && o.exact;
@@ -513,6 +527,8 @@ void World::step_midpoint(double h) {
     if (!(rho_excess <= kRhoShare * tol)) {  // (a window's bounds: below)
       if (prev >= 0) acc.mark(prev);
       if (next >= 0) acc.mark(next);
+    } else {
+      acc.fine_rho = std::max(acc.fine_rho, rho_excess);
     }
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
@@ -543,11 +559,13 @@ void World::step_midpoint(double h) {
   double last_rho = kInfinity, final_gap = 0;
   int limit = options_.max_iterations;  // this solve's last iteration (a rescue extends it)
   int far_rescues = 0;  // the far rescues tried: from shorter steps (kRescueFirst, then kRescueSecond), then long
-  bool expect_converged = m.guess_odds.expect_right();
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   // A window: rows [win_lo, win_hi] solved alone while the others hold (kWindowShare above); -1 when passes are whole.
   const bool may_window =
       options_.windows && !forced && cf == 0 && loose_bodies_.empty() && static_cast<int>(n) >= kWindowMinRows;
+  // Whether this step tries a window from its first guess (below), which the first pass then checks.
+  const bool try_guess_window = may_window && !rescuing_ && guess_window_wait_ == 0;
+  bool expect_converged = m.guess_odds.expect_right() || try_guess_window;
   int win_lo = -1, win_hi = -1;
   bool window_used = false;  // at most one window a step
   PassAcc edge;              // what a window pass measures of the two rows beyond its edges
@@ -567,6 +585,20 @@ void World::step_midpoint(double h) {
     win_lo = lo, win_hi = hi;
     window_used = true;
     return true;
+  };
+  // A window from the step's first guess (docs/model.md section 3.1, kGuessWindowWait): when the check of the guess
+  // finds the rows short of the tolerances in one short stretch, that window is solved alone from the guess, and the
+  // rows outside it, which the check found within their tolerances, are left as they are: no whole Newton step and no
+  // bound (outside_rho is what the check measured). It fails when whole passes must follow (the window's solution
+  // opens the rows beyond its edges: a change of tension that runs down the whole chain).
+  bool guess_window = false, whole_after_window = false;
+  const auto window_from_guess = [&](const PassAcc& a) {
+    if (!try_guess_window || !(a.worst_gap2 < kInfinity) || !(a.worst_rho < kInfinity) || !open_window(a))
+      return false;
+    outside_rho = a.fine_rho;
+    last_rho = a.worst_rho;
+    ++st.guess_windows;
+    return guess_window = true;
   };
   for (int iteration = 0;; ++iteration) {
     lane[0] = lane[1] = PassAcc{};
@@ -765,13 +797,15 @@ void World::step_midpoint(double h) {
       checked = within(lane[0]);
       ++st.checks;
       if (!checked) {
-        lane[0] = lane[1] = PassAcc{};
         ++st.short_checks;
+        if (iteration == 0 && window_from_guess(lane[0])) continue;
+        lane[0] = lane[1] = PassAcc{};
       }
     }
     if (!checked && !windowed) {
       for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{}, FromTop{});
       if (n > 0) newton_pass();
+      whole_after_window = guess_window;
       lane[0].merge(lane[1]);
       lane[1] = PassAcc{};
     }
@@ -988,6 +1022,16 @@ void World::step_midpoint(double h) {
     }
   }
   m.guess_odds.record(st.iterations == 0);
+  if (may_window && !rescuing_) {  // the wait before the next window from a guess (kGuessWindowWait)
+    if (!try_guess_window) {
+      --guess_window_wait_;
+    } else if (guess_window && !whole_after_window) {
+      guess_window_wait_ = guess_window_backoff_ = 0;
+    } else if (st.iterations > 0) {  // (a right guess tells nothing)
+      guess_window_backoff_ = std::min(std::max(2 * guess_window_backoff_, 1), kGuessWindowWait);
+      guess_window_wait_ = guess_window_backoff_;
+    }
+  }
 
   // Work and dissipation of the step, exactly as the scheme accounts them, and the end of the step. The sums keep
   // this order (the bodies' dissipation, then the hinge friction's; the friction's work, the users' forces', the

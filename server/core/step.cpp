@@ -218,6 +218,8 @@ void World::step(double h, bool adaptive, Snapshot* before) {
     before->adaptive_h = adaptive_h_;
     before->force_steps = std::min(force_steps_, 1);  // the history is not kept (World::step in world.hpp)
     before->force_step_h = force_step_h_;
+    before->guess_window_wait = guess_window_wait_;
+    before->guess_window_backoff = guess_window_backoff_;
     before->hinge_forces_1.clear();
     before->hinge_forces_2.clear();
     if (split_chain()) {  // in the step's halves (in_halves)
@@ -431,7 +433,8 @@ double World::finish_work(double t0, double h) const {
 Snapshot World::save() const {
   if (dirty_) throw std::logic_error("save: the model has unbuilt hinges; call finalize() first");
   return {state_, forces_, t_, structure_, adaptive_h_,
-          hinge_force_, hinge_force_1_, hinge_force_2_, force_steps_, force_step_h_};
+          hinge_force_, hinge_force_1_, hinge_force_2_, force_steps_, force_step_h_,
+          guess_window_wait_, guess_window_backoff_};
 }
 
 void World::restore(const Snapshot& s) {
@@ -450,6 +453,8 @@ void World::restore(const Snapshot& s) {
   }
   force_steps_ = s.force_steps;
   force_step_h_ = s.force_step_h;
+  guess_window_wait_ = s.guess_window_wait;
+  guess_window_backoff_ = s.guess_window_backoff;
   mark_state_changed();
 }
 

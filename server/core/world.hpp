@@ -145,6 +145,7 @@ struct Snapshot {
   std::vector<Vec2> hinge_forces, hinge_forces_1, hinge_forces_2;
   int force_steps = 0;
   double force_step_h = 0;
+  int guess_window_wait = 0, guess_window_backoff = 0;  // whether the step tries a window from its first guess
 };
 
 // Per-step solver figures, for statistics and warnings.
@@ -180,9 +181,9 @@ struct StepStats {
   // odds, MidpointWork::GuessOdds, or an iterate near the tolerance), and those of them that found it was not, so that
   // a full Newton pass followed: the cost of a wrong expectation.
   int checks = 0, short_checks = 0;
-  // Midpoint passes over a window of the rows alone, after a whole pass found the rows short of the tolerances in
-  // one short stretch (docs/model.md section 3.1).
-  int window_passes = 0;
+  // Midpoint passes over a window of the rows alone, after a pass found the rows short of the tolerances in one
+  // short stretch (docs/model.md section 3.1), and the windows opened by the check of a step's first guess.
+  int window_passes = 0, guess_windows = 0;
   int window_lo = -1, window_hi = -1;  // the rows of the step's window, when it had one (-1: none)
 
   // Adds the solver figures of a later step inside the same step() (a sub-step): counts and work summed, the worst
@@ -200,6 +201,7 @@ struct StepStats {
     checks += s.checks;
     short_checks += s.short_checks;
     window_passes += s.window_passes;
+    guess_windows += s.guess_windows;
     if (s.window_lo >= 0) window_lo = s.window_lo, window_hi = s.window_hi;
   }
 };
@@ -574,6 +576,9 @@ class World {
   std::vector<Vec2> hinge_force_, hinge_force_1_, hinge_force_2_;
   int force_steps_ = 0;      // consecutive midpoint steps of force_step_h_ behind those forces, at most 3
   double force_step_h_ = 0;  // their length [s]
+  // The midpoint steps to wait before the next tries a window from its first guess, and the wait after the next failed
+  // try (midpoint.cpp, kGuessWindowWait). Saved in snapshots too: whether a step tries changes its bits.
+  int guess_window_wait_ = 0, guess_window_backoff_ = 0;
   std::vector<BodyState> step_start_;
   std::vector<AppliedForce> step_forces_;  // the applied forces as the last step used them
   std::uint64_t step_structure_ = 0;  // structure the last step ran on; weld_moment() is void after a restructure
