@@ -312,13 +312,13 @@ TEST(Blocks, TenThousandTippedAtOneMillisecond) {
 // energy (-5.9e3 and -5.9e5 J) kept to 1e-6 J (measured 3.5e-10 and 2.4e-8 J: the midpoint step keeps it to the
 // solver's tolerance). The whip's solves that the iteration limit cuts short (42 at 10 000 blocks) are rescued within
 // their step (docs/model.md section 3.1). With windows of the chain opened from inexact passes too, one step at 10 000
-// blocks was redone in halves (docs/benchmarks.md, "Thirteenth round"). At 100 000 blocks none is either
-// (docs/benchmarks.md, "Fourteenth round"); that run takes a minute and is not a test. Under AddressSanitizer the
-// 10 000-block chain runs 0.3 s. The whip's fastest blocks turn by more than a radian a step (1300 rad/s at t = 1.1 s),
-// where the midpoint's equations can fold so that no solution of a 1 ms step continues the shorter steps' (a step at
-// 1.1 s: 0.95 ms solved, 1 ms not). Which steps meet a fold depends on the trajectory, and trajectories that differ
-// within the tolerance differ there: of six variants of the window from the first guess, three met one such step each
-// in the 2 s (docs/benchmarks.md, "Fourteenth round"). This test pins this code's trajectory; it is not a margin.
+// blocks was redone in halves (docs/benchmarks.md, "Thirteenth round"). 100 000 blocks: the next test. Under
+// AddressSanitizer the 10 000-block chain runs 0.3 s. The whip's fastest blocks turn by more than a radian a step
+// (1300 rad/s at t = 1.1 s), where the midpoint's equations can fold so that no solution of a 1 ms step continues the
+// shorter steps' (a step at 1.1 s: 0.95 ms solved, 1 ms not). Which steps meet a fold depends on the trajectory, and
+// trajectories that differ within the tolerance differ there: of six variants of the window from the first guess,
+// three met one such step each in the 2 s (docs/benchmarks.md, "Fourteenth round"). This test pins this code's
+// trajectory; it is not a margin.
 TEST(Blocks, FreeChainWhipsWithNoStepRedone) {
   for (const int n : {1000, 10000}) {
 #if defined(__SANITIZE_ADDRESS__)
@@ -335,6 +335,42 @@ TEST(Blocks, FreeChainWhipsWithNoStepRedone) {
     EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9) << n;
     EXPECT_NEAR(physical_energy(sim, 0), e0, 1e-6) << n;
     std::printf("N %d: energy %.17g J, change %.3g J\n", n, e0, physical_energy(sim, 0) - e0);
+  }
+}
+
+// The stability sweep at 100 000 blocks, at 1 ms with the defaults: the free chain from its straight start for 2 s and
+// the classic ladder tipped (at 0.5 s) for 5 s. No step redone in halves or failed, nothing non-finite, the hinges
+// closed below 1e-9 m, the free chain's undamped energy (-5.9e7 J) kept to 1e-4 J (measured 6.9e-7 J), and the tipped
+// ladder's first flip-flop at hinge 1. About three minutes on two threads (docs/benchmarks.md, "Fourteenth round");
+// under AddressSanitizer, whose build is about ten times slower, the free chain's first 50 ms alone. As the 10 000-block
+// whip above, this pins this code's trajectories (the whip's steps can meet a fold of the midpoint's equations), not a
+// margin.
+TEST(Blocks, AHundredThousandBlocksHoldAtOneMillisecond) {
+#if defined(__SANITIZE_ADDRESS__)
+  const double chain_until = 0.05, ladder_until = 0;
+#else
+  const double chain_until = 2.0, ladder_until = 5.0;
+#endif
+  {
+    scene::Simulation sim(shipped("free-chain.toml", {"ladder.blocks=100000"}));
+    const double e0 = physical_energy(sim, 0);
+    const Trace r = run(sim, chain_until);
+    EXPECT_EQ(r.error, "");
+    EXPECT_EQ(r.warnings, 0);
+    EXPECT_LT(sim.max_step_residual(), 1e-9);
+    EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9);
+    EXPECT_NEAR(physical_energy(sim, 0), e0, 1e-4);
+    std::printf("free chain: energy %.17g J, change %.3g J\n", e0, physical_energy(sim, 0) - e0);
+  }
+  if (ladder_until > 0) {
+    scene::Simulation sim(shipped("classic.toml", {"ladder.blocks=100000"}));
+    const Trace r = run(sim, ladder_until);
+    EXPECT_EQ(r.error, "");
+    EXPECT_EQ(r.warnings, 0);
+    EXPECT_GE(r.flips, 1);
+    EXPECT_EQ(r.first_flip_hinge, 1);
+    EXPECT_LT(sim.max_step_residual(), 1e-9);
+    EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9);
   }
 }
 
