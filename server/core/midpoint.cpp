@@ -180,7 +180,7 @@ namespace {
 // and forth all through a pass.
 struct alignas(64) PassAcc {
   double worst_rho = 0, worst_gap2 = 0, largest_gap2 = 0;  // the residuals (finish_body, count_gap)
-  double fine_rho = 0;  // the worst angular residual of the bodies within their line (a window from the first guess)
+  double fine_rho = 0;  // a check's worst angular residual of the bodies within their line (window_from_guess)
   bool exact = true;                                       // newton_remainder's: no floored or limited turn
   double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
   int pivots = 0;                                          // regularised pivots
@@ -527,7 +527,7 @@ void World::step_midpoint(double h) {
     if (!(rho_excess <= kRhoShare * tol)) {  // (a window's bounds: below)
       if (prev >= 0) acc.mark(prev);
       if (next >= 0) acc.mark(next);
-    } else {
+    } else if constexpr (!kNewton) {  // (a check's: window_from_guess)
       acc.fine_rho = std::max(acc.fine_rho, rho_excess);
     }
   };
@@ -562,7 +562,8 @@ void World::step_midpoint(double h) {
   bool predicted = false;  // the step ended on newton_remainder's bound: its gaps are measured at the end state
   // A window: rows [win_lo, win_hi] solved alone while the others hold (kWindowShare above); -1 when passes are whole.
   const bool may_window =
-      options_.windows && !forced && cf == 0 && loose_bodies_.empty() && static_cast<int>(n) >= kWindowMinRows;
+      options_.windows && !has_rolling_ && !forced && cf == 0 && loose_bodies_.empty() &&
+      static_cast<int>(n) >= kWindowMinRows;
   // Whether this step tries a window from its first guess (below), which the first pass then checks.
   const bool try_guess_window = may_window && !rescuing_ && guess_window_wait_ == 0;
   bool expect_converged = m.guess_odds.expect_right() || try_guess_window;
