@@ -151,8 +151,12 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // rows beyond its edges too. What the opening pass's correction left of the outside rows' residuals is bounded as
 // newton_remainder bounds a whole step's, and a converged window ends the step as a step that ends on that bound does
 // (every gap measured at the end state); when the bound is not small enough, one whole pass measures every row
-// first. (Opened from inexact passes too, windows changed which iterate a whipping chain's cycling solves were
-// rescued from, and one step of the 10 000-block free chain was redone in halves.) Corner hinges without hinge
+// first. A window's own last correction, when it was exact and near, is bounded as a whole step's too (with the two
+// impulses beyond its edges, which its first and last bodies' angular equations hold), and the two rows beyond its
+// edges are then measured at the end iterate: within the tolerances, the step ends without the window pass that would
+// have measured that iterate, on the same bits (window_edges_within below). (Opened from inexact passes too, windows
+// changed which iterate a whipping chain's cycling solves were rescued from, and one step of the 10 000-block free
+// chain was redone in halves.) Corner hinges without hinge
 // friction, users' forces or free bodies only (a rolling contact's or the friction's terms reach a body's
 // neighbour's turn), and chains of at least kWindowMinRows rows.
 constexpr int kWindowMinRows = 256, kWindowMargin = 32;
@@ -210,6 +214,39 @@ using FromTop = std::integral_constant<int, 0>;
 using FromBottom = std::integral_constant<int, 1>;
 using BothSides = std::integral_constant<int, 2>;
 }  // namespace
+
+void World::reserve_step() {
+  if (options_.integrator != Integrator::Midpoint) return;
+  MidpointWork& m = mid_;
+  const size_t nb = bodies_.size(), n = rows_.size();
+  const auto touch = [](auto& v, size_t count, const auto& value) {
+    if (v.capacity() >= count) return;
+    const size_t size = v.size();
+    v.resize(count, value);  // (written: its pages are touched now)
+    v.resize(size);
+  };
+  for (std::vector<double>* v : {&m.t, &m.kt, &m.rho, &m.inv_jac, &m.alpha, &m.beta, &m.spin_gain, &m.damp,
+                                 &m.stiff_coef, &m.lift})
+    touch(*v, nb, 0.0);
+  for (std::vector<Vec2>* v : {&m.vbar, &m.vfree}) touch(*v, nb, Vec2(Vec2::Zero()));
+  for (std::vector<Vec2>* v : {&m.lam, &m.dlam, &m.mid_a, &m.mid_b, &m.end_a, &m.end_b, &ua0_, &ub0_, &hinge_force_,
+                               &hinge_force_1_, &hinge_force_2_})
+    touch(*v, n, Vec2(Vec2::Zero()));
+  if (newton_.size() != static_cast<int>(n)) newton_.resize(static_cast<int>(n));
+}
+
+void World::reserve_snapshot(Snapshot& s) const {
+  if (s.bodies.capacity() < state_.size()) {
+    const size_t size = s.bodies.size();
+    s.bodies.resize(state_.size(), state_.empty() ? BodyState{} : state_.front());
+    s.bodies.resize(size);
+  }
+  if (s.hinge_forces.capacity() < rows_.size()) {
+    const size_t size = s.hinge_forces.size();
+    s.hinge_forces.resize(rows_.size(), Vec2(Vec2::Zero()));
+    s.hinge_forces.resize(size);
+  }
+}
 
 void World::step_midpoint(double h) {
   MidpointWork& m = mid_;
@@ -778,6 +815,23 @@ void World::step_midpoint(double h) {
       }
       skip = saved_skip;
     };
+    // After a window's correction that ends on its bound, the two rows beyond its edges, which the correction does not
+    // solve (their impulses are held, the window's first and last bodies turn), are measured at the end iterate as the
+    // next window pass would measure them (its first and last bodies' angular residuals with them), and the step ends
+    // as that pass would end it: on the same iterate, without the pass.
+    const auto window_edges_within = [&] {
+      const int saved_skip = std::exchange(skip, -1);
+      edge = PassAcc{};
+      if (win_lo > 0) residual_row(win_lo - 1, edge, std::false_type{}, FromTop{});
+      if (win_hi + 1 < static_cast<int>(n)) {
+        const Row& r = rows_[static_cast<size_t>(win_hi + 1)];
+        if (r.link_prev && !bodies_[r.a].kinematic)
+          finish_body(r.a, win_hi, win_hi + 1, edge, std::false_type{}, FromTop{});
+        residual_row(win_hi + 1, edge, std::false_type{}, FromTop{});
+      }
+      skip = saved_skip;
+      return within(edge);
+    };
     const bool windowed = win_lo >= 0;
     if (windowed) {
       window_pass();
@@ -937,7 +991,10 @@ void World::step_midpoint(double h) {
       if (windowed) {  // the window's rows, and its first row's body a (a whole pass corrects it with the row before)
         newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); }, win_hi + 1, win_lo);
         const Row& r = rows_[static_cast<size_t>(win_lo)];
-        if (r.link_prev && !bodies_[r.a].kinematic) correct_body(r.a, win_lo - 1, win_lo, track, lane[0]);
+        if (r.link_prev && !bodies_[r.a].kinematic) {
+          correct_body(r.a, win_lo - 1, win_lo, track, lane[0]);
+          if constexpr (decltype(track)::value) mean_velocity(r.a, win_lo - 1, win_lo);
+        }
       } else if (n > 0 && split == 0) {
         if (three)
           m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); });
@@ -970,8 +1027,10 @@ void World::step_midpoint(double h) {
     // A window opens after a whole Newton pass whose rows short of the tolerances lie in one short stretch
     // (kWindowShare above), its corrections tracked for the bound of what they leave outside it.
     opening = !windowed && !checked && lane[0].exact && open_window(lane[0]);
-    const bool track =
-        (expect_converged && lane[0].exact && !forced && (cf == 0 || three) && !windowed) || opening;
+    // A window's correction is tracked too when the rows outside it are bounded: the step may end on its bound (below).
+    const bool track = (expect_converged && lane[0].exact && !forced && (cf == 0 || three) &&
+                        (!windowed || outside_rho < kInfinity)) ||
+                       opening;
     if (track)
       update(std::true_type{});
     else
@@ -993,7 +1052,13 @@ void World::step_midpoint(double h) {
       lane[0].merge(o);  // (o holds tracked corrections alone)
     }
     const bool exact = lane[0].exact;
-    const double dt_max = lane[0].dt_max, cross_max = lane[0].cross_max, lam_max2 = lane[0].lam_max2;
+    const double dt_max = lane[0].dt_max, cross_max = lane[0].cross_max;
+    double lam_max2 = lane[0].lam_max2;
+    if (windowed) {  // the window's first and last bodies' rows outside it (their impulses are held)
+      if (win_lo > 0) lam_max2 = std::max(lam_max2, m.lam[static_cast<size_t>(win_lo - 1)].squaredNorm());
+      if (win_hi + 1 < static_cast<int>(n))
+        lam_max2 = std::max(lam_max2, m.lam[static_cast<size_t>(win_hi + 1)].squaredNorm());
+    }
     ++st.iterations;
     // newton_remainder: after an exact Newton step what is left of the residual is the equations' second-order
     // remainder in the correction: the gaps and vbar are linear in the impulses, the levers are the Cayley map's of
@@ -1014,9 +1079,9 @@ void World::step_midpoint(double h) {
       if (gap_bound <= kRemainderShare * tol && 2 * spin_gyration * lever * 1.5 * cross_max <= rho_limit) {
         const double rho_bound =
             2 * spin_gyration * lever * (10.6 * std::sqrt(lam_max2) * dt_max * dt_max + 1.5 * cross_max);
-        if (rho_bound <= rho_limit) {
+        if (rho_bound <= rho_limit && (!windowed || window_edges_within())) {
           predicted = true;
-          st.angular_residual = rho_bound;
+          st.angular_residual = windowed ? std::max({rho_bound, edge.worst_rho, outside_rho}) : rho_bound;
           break;
         }
       }

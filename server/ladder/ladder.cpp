@@ -253,6 +253,7 @@ Ladder::Ladder(const LadderSpec& spec, const core::Options& options) : spec_(spe
   }
   world_.finalize();
   set_options(options);
+  world_.reserve_snapshot(before_[0]);  // (the first step's copy of the world: World::reserve_step)
 }
 
 void Ladder::set_options(const core::Options& options) {

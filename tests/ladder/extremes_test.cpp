@@ -440,20 +440,26 @@ TEST(Blocks, AWindowOfTheChainSolvesTheSameStepsAsWholePasses) {
 // A window from the step's first guess (docs/model.md section 3.1; kGuessWindowWait in midpoint.cpp). The free chain
 // of 3000 blocks (solved in two halves) from its straight start: while the rows its whip has reached are within the
 // chain's first quarter (the first 40 steps; measured: 50), each step checks its guess, solves the window that the
-// check found short from there, takes no whole Newton pass (one Newton step fewer than window passes: the last
-// measures) and ends on what the window measured, with the hinges closed below 1e-9 m.
+// check found short from there, takes no whole Newton pass and ends on the window's bound, with the hinges closed
+// below 1e-9 m. Most steps end on the bound of the window's last correction, with no pass to measure it (as many
+// window passes as Newton steps; measured: 37 of the 40), the others on a last window pass that measures (one pass
+// more than Newton steps).
 TEST(Blocks, TheFreeChainsWhipIsSolvedInAWindowFromTheFirstGuess) {
   scene::Simulation sim(shipped("free-chain.toml", {"ladder.blocks=3000"}));
+  int unmeasured = 0;
   for (int i = 0; i < 40; ++i) {
     sim.step();
     const core::StepStats& st = sim.ladder().world().last_step();
     EXPECT_EQ(st.guess_windows, 1) << "step " << i;
     EXPECT_EQ(st.checks, 1) << "step " << i;
-    EXPECT_EQ(st.iterations, st.window_passes - 1) << "step " << i;
+    EXPECT_GE(st.iterations, 1) << "step " << i;
+    EXPECT_TRUE(st.window_passes == st.iterations || st.window_passes == st.iterations + 1) << "step " << i;
+    unmeasured += st.window_passes == st.iterations ? 1 : 0;
     EXPECT_EQ(st.bound_ends, 1) << "step " << i;
     EXPECT_LE(st.window_hi, 3000 / 4) << "step " << i;
     EXPECT_TRUE(st.converged) << "step " << i;
   }
+  EXPECT_GE(unmeasured, 30);
   EXPECT_LT(sim.ladder().world().max_hinge_error(), 1e-9);
 }
 
