@@ -156,9 +156,8 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 // edges are then measured at the end iterate: within the tolerances, the step ends without the window pass that would
 // have measured that iterate, on the same bits (window_edges_within below). (Opened from inexact passes too, windows
 // changed which iterate a whipping chain's cycling solves were rescued from, and one step of the 10 000-block free
-// chain was redone in halves.) Corner hinges without hinge
-// friction, users' forces or free bodies only (a rolling contact's or the friction's terms reach a body's
-// neighbour's turn), and chains of at least kWindowMinRows rows.
+// chain was redone in halves.) Corner hinges without hinge friction, users' forces or free bodies only (a rolling
+// contact's or the friction's terms reach a body's neighbour's turn), and chains of at least kWindowMinRows rows.
 constexpr int kWindowMinRows = 256, kWindowMargin = 32;
 constexpr double kWindowShare = 0.25;
 // A window from the first guess (docs/model.md section 3.1): where the guess met the tolerances everywhere but in one
@@ -215,16 +214,21 @@ using FromBottom = std::integral_constant<int, 1>;
 using BothSides = std::integral_constant<int, 2>;
 }  // namespace
 
+namespace {
+// Room for `count` elements in v, its pages touched (written with `value`); v keeps its size and contents.
+template <class T>
+void touch(std::vector<T>& v, size_t count, const T& value) {
+  if (v.capacity() >= count) return;
+  const size_t size = v.size();
+  v.resize(count, value);
+  v.resize(size);
+}
+}  // namespace
+
 void World::reserve_step() {
   if (options_.integrator != Integrator::Midpoint) return;
   MidpointWork& m = mid_;
   const size_t nb = bodies_.size(), n = rows_.size();
-  const auto touch = [](auto& v, size_t count, const auto& value) {
-    if (v.capacity() >= count) return;
-    const size_t size = v.size();
-    v.resize(count, value);  // (written: its pages are touched now)
-    v.resize(size);
-  };
   for (std::vector<double>* v : {&m.t, &m.kt, &m.rho, &m.inv_jac, &m.alpha, &m.beta, &m.spin_gain, &m.damp,
                                  &m.stiff_coef, &m.lift})
     touch(*v, nb, 0.0);
@@ -236,16 +240,8 @@ void World::reserve_step() {
 }
 
 void World::reserve_snapshot(Snapshot& s) const {
-  if (s.bodies.capacity() < state_.size()) {
-    const size_t size = s.bodies.size();
-    s.bodies.resize(state_.size(), state_.empty() ? BodyState{} : state_.front());
-    s.bodies.resize(size);
-  }
-  if (s.hinge_forces.capacity() < rows_.size()) {
-    const size_t size = s.hinge_forces.size();
-    s.hinge_forces.resize(rows_.size(), Vec2(Vec2::Zero()));
-    s.hinge_forces.resize(size);
-  }
+  touch(s.bodies, state_.size(), state_.empty() ? BodyState{} : state_.front());
+  touch(s.hinge_forces, rows_.size(), Vec2(Vec2::Zero()));
 }
 
 void World::step_midpoint(double h) {
