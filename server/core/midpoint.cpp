@@ -468,7 +468,8 @@ void World::step_midpoint(double h) {
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
   // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them). `side`
-  // (FromTop, FromBottom, BothSides): which of its rows' rolling terms it computes (rolling_once below).
+  // (FromTop, FromBottom, BothSides): which of its rows' rolling terms it computes in a pass that measures the
+  // residual alone (rolling_once below; a Newton pass finds them ahead of the rows that read them).
   const auto finish_body = [&](int i, int prev, int next, PassAcc& acc, auto newton, auto side) HOT_INLINE {
     constexpr bool kNewton = decltype(newton)::value;
     constexpr int kSide = decltype(side)::value;
@@ -482,8 +483,8 @@ void World::step_midpoint(double h) {
       stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
         const int a = rows_[prev].a;
-        const Rolling& c = kSide == FromTop::value
-                               ? m.roll[prev]  // computed for body a in this pass
+        const Rolling& c = kSide == FromTop::value || kNewton
+                               ? m.roll[prev]  // computed for body a in this pass, or before it (roll_rows)
                                : (m.roll[prev] = rolling<kNewton>(m.roll_u0[prev], roll_[prev].radius, m.t[a], ti,
                                                                   m.kt[a], k));
         v.mid -= c.mid;
@@ -508,8 +509,8 @@ void World::step_midpoint(double h) {
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
         const int b = rows_[next].b;
-        const Rolling& c = kSide == FromBottom::value
-                               ? m.roll[next]  // computed for body b in this pass
+        const Rolling& c = kSide == FromBottom::value || kNewton
+                               ? m.roll[next]  // computed for body b in this pass, or before it (roll_rows)
                                : (m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti, m.t[b], k,
                                                                   m.kt[b]));
         v.mid += c.mid;
@@ -542,15 +543,17 @@ void World::step_midpoint(double h) {
       // instead of a singular one (the answer is the same; the iteration's path is not).
       const double jac = damp + c * (stiff * k + 2 * cf * friction_rows - own_roll);
       if (!(jac >= kJacFloor)) acc.exact = false;
-      const double inv_jac = 1 / std::max(jac, kJacFloor);
-      m.inv_jac[i] = inv_jac;
-      if (three) {  // the exact Newton's terms (rolling_newton above)
+      if (three) {  // the exact Newton's terms (rolling_newton above); 1 / jac only where a body is eliminated (row3)
         m.jac[i] = jac;
         if (prev >= 0) m.couple_ba[prev] = -c * (couple_prev + 2 * cf);
+        else m.inv_jac[i] = 1 / std::max(jac, kJacFloor);
         if (next >= 0) m.couple_ab[next] = -c * (couple_next + 2 * cf);
+      } else {
+        const double inv_jac = 1 / std::max(jac, kJacFloor);
+        m.inv_jac[i] = inv_jac;
+        m.stiff_coef[i] = 2 * c * k * inv_jac;
+        m.lift[i] = 2 * k * rho * inv_jac;
       }
-      m.stiff_coef[i] = 2 * c * k * inv_jac;
-      m.lift[i] = 2 * k * rho * inv_jac;
     }
     // What rounding alone leaves of rho: a few ulps of its largest terms (a long chain's tension puts moments of
     // several N m s on each block that cancel to a small net turn).
@@ -655,7 +658,8 @@ void World::step_midpoint(double h) {
     // always, with its next row's side when it has one. From the bottom: body b at a chain's end, body a always, with
     // its previous row's side. rolling_once: a rolling row's contact terms are computed once per pass, on the side of
     // its body that the pass finishes first (in finish_body, or here when that body is driven), and read on the
-    // other's: every pass runs over the rows in order with the turns fixed.
+    // other's: every pass runs over the rows in order with the turns fixed. A Newton pass finds them ahead of the
+    // rows that read them (roll_rows, below) and only reads them.
     const auto residual_row = [&](int k, PassAcc& acc, auto newton, auto side) HOT_INLINE {
       constexpr bool kNewton = decltype(newton)::value;
       const Row& r = rows_[static_cast<size_t>(k)];
@@ -668,7 +672,7 @@ void World::step_midpoint(double h) {
       const auto driven_b = [&] { m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k]; };
       if constexpr (decltype(side)::value == FromTop::value) {
         if (ak) {
-          if (r.rolls) roll_here();
+          if (r.rolls && !kNewton) roll_here();
           driven_a();
         } else if (!r.link_prev) {
           finish_body(r.a, -1, k, acc, newton, side);
@@ -679,7 +683,7 @@ void World::step_midpoint(double h) {
           finish_body(r.b, k, r.shares_next ? k + 1 : -1, acc, newton, side);
       } else {
         if (bk) {
-          if (r.rolls) roll_here();
+          if (r.rolls && !kNewton) roll_here();
           driven_b();
         } else if (!r.shares_next) {
           finish_body(r.b, k, -1, acc, newton, side);
@@ -758,26 +762,55 @@ void World::step_midpoint(double h) {
         rhs += (m.rho[r.a] * inv) * col;
       }
     };
+    // A Newton pass's rolling contacts (rolling()) for rows [from, to), found before the pass reads them: their
+    // square root and division, which every term of a row waits for, then overlap from row to row (their inputs, the
+    // turns, are fixed through the pass). The same values as computed in the pass: the same bits.
+    const auto roll_rows = [&](int from, int to) HOT_INLINE {
+      for (int k = from; k < to; ++k) {
+        const Row& r = rows_[static_cast<size_t>(k)];
+        if (r.rolls)
+          m.roll[k] = rolling<true>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
+      }
+    };
+    // The rows' 3x3 blocks over rows [first, last), their contacts found kRollChunk rows at a time ahead of the rows
+    // that read them (a row's bodies read its own and, from the top, the next row's; from the bottom, the previous
+    // row's): the chunk is still in the cache when it is read.
+    constexpr int kRollChunk = 64;
+    const auto rows3_down = [&](int first, int last, PassAcc& acc) HOT_INLINE {
+      return [&, first, last](int k, auto&&... a) HOT_INLINE {
+        if (has_rolling_ && (k - first) % kRollChunk == 0)
+          roll_rows(k == first ? k : k + 1, std::min(k + kRollChunk + 1, last));
+        return row3(k, a..., acc, FromTop{});
+      };
+    };
+    const auto rows3_up = [&](int first, int last, PassAcc& acc) HOT_INLINE {
+      return [&, first, last](int k, auto&&... a) HOT_INLINE {
+        if (has_rolling_ && (last - 1 - k) % kRollChunk == 0)
+          roll_rows(std::max(k - kRollChunk, first), k == last - 1 ? last : k);
+        return row3(k, a..., acc, FromBottom{});
+      };
+    };
     // The Newton pass: each row's blocks built, factored and forward-substituted, in one pass or two halves.
     const auto newton_pass = [&] {
       const int rows = static_cast<int>(n);
       if (split == 0) {
         const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
-        const auto top3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[0], FromTop{}); };
-        lane[0].pivots +=
-            three ? m.newton3.factor_forward(rows, top3, m.dx) : newton_.factor_forward(rows, top, m.dlam);
+        lane[0].pivots += three ? m.newton3.factor_forward(rows, rows3_down(0, rows, lane[0]), m.dx)
+                                : newton_.factor_forward(rows, top, m.dlam);
         return;
       }
+      // (the shared body's two rows' contacts first: it is finished before the halves)
+      const int top_end = skip >= 0 ? split - 1 : split, bottom_start = skip >= 0 ? split + 1 : split;
+      if (has_rolling_ && skip >= 0) roll_rows(split - 1, split + 1);
       if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::true_type{}, BothSides{});
       lanes_.run([&](int l) {
         if (l == 0) {
           const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
-          const auto top3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[0], FromTop{}); };
-          lane[0].pivots += three ? m.newton3.factor_down(split, top3, m.dx) : newton_.factor_down(split, top, m.dlam);
+          lane[0].pivots += three ? m.newton3.factor_down(split, rows3_down(0, top_end, lane[0]), m.dx)
+                                  : newton_.factor_down(split, top, m.dlam);
         } else {
           const auto bottom = [&](auto&&... a) HOT_INLINE { return row(a..., lane[1], FromBottom{}); };
-          const auto bottom3 = [&](auto&&... a) HOT_INLINE { return row3(a..., lane[1], FromBottom{}); };
-          lane[1].pivots += three ? m.newton3.factor_up(split, rows, bottom3, m.dx)
+          lane[1].pivots += three ? m.newton3.factor_up(split, rows, rows3_up(bottom_start, rows, lane[1]), m.dx)
                                   : newton_.factor_up(split, rows, bottom, m.dlam);
         }
       });

@@ -203,8 +203,9 @@ TEST(SessionRules, ALoadOfAPipeOrAFolderSaysItIsNoRegularFile) {
   fs::remove_all(dir);
 }
 
-// A scene whose rolling hinge the scene rules refuse (an end radius above half the thickness, NaN, or a rolling
-// hinge with an inset) is refused by `load` with the file's line and column, and the ladder is left as it was.
+// A scene whose rolling hinge the scene rules refuse (an end radius above half the thickness, NaN or negative, or a
+// rolling hinge with an inset) is refused by `load` with the file's line, column and reason, and the ladder is left
+// as it was.
 TEST(SessionRules, ALoadOfABadRollingHingeSaysWhereAndChangesNothing) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / ("ladder-rolling-" + std::to_string(getpid()));
@@ -220,6 +221,7 @@ TEST(SessionRules, ALoadOfABadRollingHingeSaysWhereAndChangesNothing) {
   };
   write("wide", "hinge = \"rolling\"\nend_radius = 0.02\n");
   write("nan", "hinge = \"rolling\"\nend_radius = nan\n");
+  write("negative", "hinge = \"rolling\"\nend_radius = -0.004\n");
   write("inset", "hinge = \"rolling\"\nend_radius = 0.004\nhinge_inset = 0.1\n");
   const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
   scene::Scene sc = scene::load_scene(kScenes + "/classic.toml");
@@ -227,9 +229,12 @@ TEST(SessionRules, ALoadOfABadRollingHingeSaysWhereAndChangesNothing) {
   const auto starts_with = [&](const std::string& name, const std::string& where) {
     refused(s, Verb{Load{name}}, (dir / (name + ".toml")).string() + ":" + where, false);
   };
-  starts_with("wide", std::to_string(line + 1) + ":14: ladder.end_radius must be at most half");
-  starts_with("nan", std::to_string(line + 1) + ":14: ");
-  starts_with("inset", std::to_string(line + 2) + ":15: ");
+  starts_with("wide", std::to_string(line + 1) + ":14: ladder.end_radius must be at most half of ladder.thickness "
+                      "(got 0.02 m with a thickness of 0.013 m)");
+  starts_with("nan", std::to_string(line + 1) + ":14: ladder.end_radius must be finite (got nan)");
+  starts_with("negative", std::to_string(line + 1) + ":14: ladder.end_radius must be >= 0 (got -0.004)");
+  starts_with("inset", std::to_string(line + 2) + ":15: ladder.hinge_inset is for corner hinges; a rolling hinge's "
+                       "pivot is set by ladder.end_radius");
   fs::remove_all(dir);
 }
 

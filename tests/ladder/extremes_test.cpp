@@ -310,7 +310,7 @@ TEST(Blocks, TenThousandTippedAtOneMillisecond) {
 // under the tension of the blocks below), at 1000 and 10 000 blocks for 2 s at 1 ms with the defaults: no step redone
 // in halves or failed (no solver_warning), nothing non-finite, the hinges closed below 1e-9 m, and the undamped chain's
 // energy (-5.9e3 and -5.9e5 J) kept to 1e-6 J (measured 3.5e-10 and 2.4e-8 J: the midpoint step keeps it to the
-// solver's tolerance). The whip's solves that the iteration limit cuts short (42 at 10 000 blocks) are rescued within
+// solver's tolerance). The whip's solves that the iteration limit cuts short (54 at 10 000 blocks) are rescued within
 // their step (docs/model.md section 3.1). With windows of the chain opened from inexact passes too, one step at 10 000
 // blocks was redone in halves (docs/benchmarks.md, "Thirteenth round"). 100 000 blocks: the next test. Under
 // AddressSanitizer the 10 000-block chain runs 0.3 s. The whip's fastest blocks turn by more than a radian a step

@@ -341,8 +341,10 @@ TEST(DoubleRipple, TheTallLaddersRipplesMeetAndCancelAndTheBottomNeverFlips) {
 #endif
   const std::set<int> never = expect_ripples_cancel("tall-double-ripple.toml", 30.0);
   ASSERT_FALSE(never.empty());
-  EXPECT_EQ(*never.rbegin(), 63) << "the hinges below the meeting point, down to the bottom one, never flip";
-  EXPECT_GE(never.size(), 30u);
+  // The meeting point within two hinges of the measured one, and the hinges below it named: 18 to 63 never flip.
+  EXPECT_GE(*never.begin(), 14) << "the ripples met higher up than measured (hinge 16)";
+  EXPECT_LE(*never.begin(), 18) << "the ripples met lower down than measured (hinge 16)";
+  for (int k = 18; k <= 63; ++k) EXPECT_TRUE(never.count(k)) << "hinge " << k << ", below the meeting point, flipped";
 }
 
 // A scene tipped once: its ripple's first flip-flops reach hinges 1, 2, ..., N - 1 in that order, within `until`.
@@ -380,7 +382,7 @@ TEST(RollingRipple, TheLongLaddersRippleStopsAfterTwoHinges) {
 }
 
 // The rolling-hinge scenes (docs/model.md section 9): the 1889 toy's ripple runs down its six blocks, and the tall
-// ladder's runs down all 63 hinges in order with the classic scene's drag (in 12 s, measured).
+// ladder's runs down all 63 hinges in order with the classic scene's drag (in about 13 s, measured; 15 allowed).
 TEST(RollingRipple, The1889ToysRippleRunsDown) { expect_ripple_reaches_the_bottom("toy-1889.toml", 5.0); }
 // Every integrator that keeps hinges, and the adaptive step, carry the rolling toy's ripple down, the last hinge
 // flipping within 20 ms of the default's (measured: 1.859 to 1.869 s).
