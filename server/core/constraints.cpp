@@ -94,7 +94,7 @@ double World::residuals(std::vector<Vec2>& c) const {
 
 double World::position_residual() {
   if (residual_version_ != state_version_) {
-    residual_ = residuals(c_);
+    residual_ = residuals(work_.c);
     residual_version_ = state_version_;
   }
   return residual_;
@@ -105,30 +105,30 @@ double World::position_residual() {
 void World::apply_correction(const std::vector<Vec2>& mu, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                              double velocity_scale) {
   const size_t nb = bodies_.size();
-  f_.assign(nb, Vec2::Zero());    // per-body sum of row multipliers
-  tau_.assign(nb, 0.0);           // per-body sum of their moments
+  work_.f.assign(nb, Vec2::Zero());    // per-body sum of row multipliers
+  work_.tau.assign(nb, 0.0);           // per-body sum of their moments
   for (size_t k = 0; k < rows_.size(); ++k) {
     const Row& r = rows_[k];
-    f_[r.a] += mu[k];
-    tau_[r.a] += cross(ua0[k], mu[k]);
-    f_[r.b] -= mu[k];
-    tau_[r.b] -= cross(ub0[k], mu[k]);
+    work_.f[r.a] += mu[k];
+    work_.tau[r.a] += cross(ua0[k], mu[k]);
+    work_.f[r.b] -= mu[k];
+    work_.tau[r.b] -= cross(ub0[k], mu[k]);
     if (velocity_scale != 0 && records_impulse(r)) row_impulse_[k] += velocity_scale * mu[k];
   }
   for (size_t b = 0; b < nb; ++b)
-    if (!bodies_[b].kinematic) correct_body(static_cast<int>(b), f_[b], tau_[b], velocity_scale);
+    if (!bodies_[b].kinematic) correct_body(static_cast<int>(b), work_.f[b], work_.tau[b], velocity_scale);
   mark_state_changed();
 }
 
-// The residuals c_ at the current state and, in the same pass, the chord system's forward substitution of -c_
-// into mu_: the first Newton iteration needs it unless the state already satisfies the hinges.
+// The residuals work_.c at the current state and, in the same pass, the chord system's forward substitution of -work_.c
+// into work_.mu: the first Newton iteration needs it unless the state already satisfies the hinges.
 double World::forward_residual(const BlockTridiag& sys) {
-  c_.resize(rows_.size());
+  work_.c.resize(rows_.size());
   double worst = 0;
-  sys.forward(mu_, [this, &worst](int k) HOT_INLINE {
-    c_[k] = row_residual(static_cast<size_t>(k));
-    worst = std::max(worst, c_[k].squaredNorm());
-    return Vec2(-c_[k]);
+  sys.forward(work_.mu, [this, &worst](int k) HOT_INLINE {
+    work_.c[k] = row_residual(static_cast<size_t>(k));
+    worst = std::max(worst, work_.c[k].squaredNorm());
+    return Vec2(-work_.c[k]);
   });
   residual_ = std::sqrt(worst);
   residual_version_ = state_version_;
@@ -136,7 +136,7 @@ double World::forward_residual(const BlockTridiag& sys) {
 }
 
 // The exact Newton matrix G(q) W G(q0)^T at the current anchors, built, factored and forward-substituted against
-// -c_ in one pass (newton_, mu_). The same blocks as build_newton_system().
+// -work_.c in one pass (newton_, work_.mu). The same blocks as build_newton_system().
 void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0) {
   Vec2 ub_prev = Vec2::Zero();
   const auto row = [&](int k, Mat2& d, Mat2& l, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
@@ -154,12 +154,12 @@ void World::factor_exact_forward(const std::vector<Vec2>& ua0, const std::vector
       l.setZero();
     }
     ub_prev = ub;
-    rhs = -c_[k];
+    rhs = -work_.c[k];
   };
-  stats_.regularised_pivots += newton_.factor_forward(static_cast<int>(rows_.size()), row, mu_);
+  stats_.regularised_pivots += newton_.factor_forward(static_cast<int>(rows_.size()), row, work_.mu);
 }
 
-// Back-substitutes the forward-substituted mu_ of `sys` and applies the correction q += W G(q0)^T mu body by body
+// Back-substitutes the forward-substituted work_.mu of `sys` and applies the correction q += W G(q0)^T mu body by body
 // as soon as a body's multipliers are final, then the new residual of each hinge as soon as both its bodies are:
 // one pass instead of three (back substitution, apply_correction(), residuals()). Rows are ordered along chains
 // and a dynamic body is in at most two rows, k and k+1 with rows_[k+1].link_prev (topology.cpp), so when the sweep
@@ -169,14 +169,14 @@ double World::correct_along_chain(const BlockTridiag& sys, const std::vector<Vec
                                   double velocity_scale) {
   const bool impulses = velocity_scale != 0;
   const Row* rows = rows_.data();
-  const Vec2* mu = mu_.data();  // backward() writes mu_[k] before calling with k; nothing resizes it meanwhile
-  Vec2* c = c_.data();
+  const Vec2* mu = work_.mu.data();  // backward() writes mu[k] before calling with k; nothing resizes it meanwhile
+  Vec2* c = work_.c.data();
   double worst = 0;
   const auto check = [&](int k) HOT_INLINE {
     c[k] = row_residual(static_cast<size_t>(k));
     worst = std::max(worst, c[k].squaredNorm());
   };
-  sys.backward(mu_, [&](int k) HOT_INLINE {
+  sys.backward(work_.mu, [&](int k) HOT_INLINE {
     const Row& r = rows[k];
     const Vec2 m = mu[k];
     if (r.corrects_b) {  // its row-k term, then (r.b being rows[k + 1].a) its row-(k + 1) term
@@ -216,7 +216,7 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
     stats_.residual = std::max(stats_.residual, residual_);
     return true;
   }
-  double res = paper ? residuals(c_) : forward_residual(system_);
+  double res = paper ? residuals(work_.c) : forward_residual(system_);
   const double initial = res;
   for (int it = 0; it < options_.max_iterations; ++it) {
     if (!(res < 1e3 * initial + 1e-9)) break;  // diverging: give up, the caller redoes the step smaller
@@ -232,29 +232,29 @@ bool World::solve_positions(const std::vector<Vec2>& ua0, const std::vector<Vec2
   return res <= options_.tolerance;
 }
 
-// A correction mu_ (applied along ua0/ub0) that left the residual `next` above the `res` it started from is cut back
-// by halves, at most six times (the correction is linear in mu, so applying -mu/2 undoes half of it): near heavily
-// loaded light bodies (the top of a long hanging chain) a full Newton step can overshoot and cycle. Returns the
+// A correction mu (work_.mu, applied along ua0/ub0) that left the residual `next` above the `res` it started from is
+// cut back by halves, at most six times (the correction is linear in mu, so applying -mu/2 undoes half of it): near
+// heavily loaded light bodies (the top of a long hanging chain) a full Newton step can overshoot and cycle. Returns the
 // residual it ends at.
 double World::cut_back(double res, double next, const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                        double velocity_scale) {
   for (int cut = 0; cut < 6 && next > res; ++cut) {
-    for (Vec2& m : mu_) m *= -0.5;
-    apply_correction(mu_, ua0, ub0, velocity_scale);
-    for (Vec2& m : mu_) m = -m;
-    next = residuals(c_);
+    for (Vec2& m : work_.mu) m *= -0.5;
+    apply_correction(work_.mu, ua0, ub0, velocity_scale);
+    for (Vec2& m : work_.mu) m = -m;
+    next = residuals(work_.c);
   }
   return next;
 }
 
-// One iteration of the default solver from the residual c_ (res its largest), returning the new largest residual.
-// `forward` says whether mu_ still needs the forward substitution (forward_residual() did it for the first).
+// One iteration of the default solver from the residual work_.c (res its largest), returning the new largest residual.
+// `forward` says whether work_.mu still needs the forward substitution (forward_residual() did it for the first).
 double World::newton_iteration(bool forward, bool& exact, double res, const std::vector<Vec2>& ua0,
                                const std::vector<Vec2>& ub0, double velocity_scale) {
   if (exact)
     factor_exact_forward(ua0, ub0);
   else if (forward)
-    system_.forward(mu_, [this](int k) HOT_INLINE { return Vec2(-c_[k]); });
+    system_.forward(work_.mu, [this](int k) HOT_INLINE { return Vec2(-work_.c[k]); });
   const double next = cut_back(res, correct_along_chain(exact ? newton_ : system_, ua0, ub0, velocity_scale), ua0,
                                ub0, velocity_scale);
   if (next > 0.25 * res) exact = true;  // the chord is converging slowly: switch to the exact Jacobian
@@ -266,48 +266,48 @@ double World::newton_iteration(bool forward, bool& exact, double res, const std:
 // (the next iteration re-linearises).
 double World::linesearch_iteration(const std::vector<Vec2>& ua0, const std::vector<Vec2>& ub0,
                                    double velocity_scale) {
-  mu_.resize(c_.size());
-  for (size_t k = 0; k < c_.size(); ++k) mu_[k] = -c_[k];
-  world_anchors(ua_, ub_);
-  build_newton_system(ua_, ub_, ua0, ub0, newton_);
+  work_.mu.resize(work_.c.size());
+  for (size_t k = 0; k < work_.c.size(); ++k) work_.mu[k] = -work_.c[k];
+  world_anchors(work_.ua, work_.ub);
+  build_newton_system(work_.ua, work_.ub, ua0, ub0, newton_);
   stats_.regularised_pivots += newton_.factor();
-  newton_.solve(mu_);
+  newton_.solve(work_.mu);
   const auto start = state_;
   const auto impulse_start = row_impulse_;
   double f0 = 0;
-  for (const Vec2& ck : c_) f0 += 0.5 * ck.squaredNorm();
+  for (const Vec2& ck : work_.c) f0 += 0.5 * ck.squaredNorm();
   double step = 1.0, res = 0;
   for (int j = 0; j < 10; ++j) {
-    apply_correction(mu_, ua0, ub0, velocity_scale);
+    apply_correction(work_.mu, ua0, ub0, velocity_scale);
     double f = 0;
-    res = residuals(c_);
-    for (const Vec2& ck : c_) f += 0.5 * ck.squaredNorm();
+    res = residuals(work_.c);
+    for (const Vec2& ck : work_.c) f += 0.5 * ck.squaredNorm();
     if (f <= (1 - 1e-4 * step) * f0 || j == 9) break;  // after 10 halvings keep the last trial
     state_ = start;
     row_impulse_ = impulse_start;
-    for (Vec2& m : mu_) m *= 0.5;
+    for (Vec2& m : work_.mu) m *= 0.5;
     step *= 0.5;
   }
   return res;
 }
 
 // The projection integrator's solve: K(q) at the current iterate built, factored and forward-substituted against
-// -C(q) in one pass (system_, mu_), the anchors left in ua_/ub_ as the correction's directions. Returns the largest
-// residual at the current state.
+// -C(q) in one pass (system_, work_.mu), the anchors left in work_.ua / work_.ub as the correction's directions.
+// Returns the largest residual at the current state.
 double World::factor_current_forward() {
   const int n = static_cast<int>(rows_.size());
-  ua_.resize(rows_.size());
-  ub_.resize(rows_.size());
-  c_.resize(rows_.size());
+  work_.ua.resize(rows_.size());
+  work_.ub.resize(rows_.size());
+  work_.c.resize(rows_.size());
   double worst = 0;
   const auto row = [this, &worst](int k, double* d, Mat2& u_prev, Vec2& rhs) HOT_INLINE {
     const Row& r = rows_[k];
-    symmetric_row(k, ua_, ub_, d, u_prev);
-    c_[k] = (state_[r.a].x + ua_[k]) - (state_[r.b].x + ub_[k]);
-    worst = std::max(worst, c_[k].squaredNorm());
-    rhs = -c_[k];
+    symmetric_row(k, work_.ua, work_.ub, d, u_prev);
+    work_.c[k] = (state_[r.a].x + work_.ua[k]) - (state_[r.b].x + work_.ub[k]);
+    worst = std::max(worst, work_.c[k].squaredNorm());
+    rhs = -work_.c[k];
   };
-  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
+  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, work_.mu);
   factor_version_ = state_version_;
   residual_ = std::sqrt(worst);
   residual_version_ = state_version_;
@@ -334,7 +334,8 @@ bool World::solve_projection(double velocity_scale) {
     if (it >= options_.max_iterations || !(res < 1e3 * initial + 1e-9)) break;
     if (it > 0) factor_current_forward();
     ++stats_.iterations;
-    res = cut_back(res, correct_along_chain(system_, ua_, ub_, velocity_scale), ua_, ub_, velocity_scale);
+    res = cut_back(res, correct_along_chain(system_, work_.ua, work_.ub, velocity_scale), work_.ua, work_.ub,
+                   velocity_scale);
   }
   stats_.residual = std::max(stats_.residual, res);
   return false;
@@ -361,18 +362,18 @@ void World::project_velocities() {
     const Vec2& ub = ub0_[k];
     rhs = -((a.v + a.w * perp(ua)) - (b.v + b.w * perp(ub)));
   };
-  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, mu_);
+  stats_.regularised_pivots += system_.factor_forward_symmetric(n, row, work_.mu);
   factor_version_ = anchors_version_ = state_version_;
-  system_.backward(mu_, [this](int k) HOT_INLINE {
+  system_.backward(work_.mu, [this](int k) HOT_INLINE {
     const Row& r = rows_[k];
-    const Vec2& m = mu_[k];
+    const Vec2& m = work_.mu[k];
     const Body& B = bodies_[r.b];
     BodyState& b = state_[r.b];
     b.v -= B.inv_mass * m;
     b.w -= B.inv_inertia * cross(ub0_[k], m);
     if (r.shares_next) {  // r.b is rows_[k + 1].a: its second row's impulse, in row order
-      b.v += B.inv_mass * mu_[k + 1];
-      b.w += B.inv_inertia * cross(ua0_[k + 1], mu_[k + 1]);
+      b.v += B.inv_mass * work_.mu[k + 1];
+      b.w += B.inv_inertia * cross(ua0_[k + 1], work_.mu[k + 1]);
     }
     if (!r.link_prev) {
       const Body& A = bodies_[r.a];
@@ -391,44 +392,44 @@ void World::project_velocities() {
 void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>& ang, double impulse_weight,
                                      double h) {
   const size_t nb = bodies_.size();
-  std::vector<Vec2>& force = force_;
-  std::vector<double>& torque = torque_;
+  std::vector<Vec2>& force = work_.force;
+  std::vector<double>& torque = work_.torque;
   accumulate_forces(force, torque, h);
   lin.resize(nb);
   ang.resize(nb);
   for (size_t b = 0; b < nb; ++b) {
     if (bodies_[b].kinematic) {
-      lin[b] = kin_acc_[b];
-      ang[b] = kin_alpha_[b];
+      lin[b] = work_.kin_acc[b];
+      ang[b] = work_.kin_alpha[b];
     } else {
       lin[b] = bodies_[b].inv_mass * force[b];
       ang[b] = bodies_[b].inv_inertia * torque[b];
     }
   }
   if (rows_.empty()) return;
-  world_anchors(ua_, ub_);
-  if (factor_version_ != state_version_) factor_system(ua_, ub_);
+  world_anchors(work_.ua, work_.ub);
+  if (factor_version_ != state_version_) factor_system(work_.ua, work_.ub);
   const size_t n = rows_.size();
-  mu_.resize(n);
+  work_.mu.resize(n);
   for (size_t k = 0; k < n; ++k) {
     const Row& r = rows_[k];
     const BodyState& a = state_[r.a];
     const BodyState& b = state_[r.b];
-    const Vec2 acc_a = lin[r.a] + ang[r.a] * perp(ua_[k]) - a.w * a.w * ua_[k];
-    const Vec2 acc_b = lin[r.b] + ang[r.b] * perp(ub_[k]) - b.w * b.w * ub_[k];
-    mu_[k] = -(acc_a - acc_b);
-    if (r.rolls) mu_[k] -= rolling_acceleration(k);
+    const Vec2 acc_a = lin[r.a] + ang[r.a] * perp(work_.ua[k]) - a.w * a.w * work_.ua[k];
+    const Vec2 acc_b = lin[r.b] + ang[r.b] * perp(work_.ub[k]) - b.w * b.w * work_.ub[k];
+    work_.mu[k] = -(acc_a - acc_b);
+    if (r.rolls) work_.mu[k] -= rolling_acceleration(k);
   }
-  system_.solve(mu_);
+  system_.solve(work_.mu);
   for (size_t k = 0; k < n; ++k) {
     const Row& r = rows_[k];
     const Body& A = bodies_[r.a];
     const Body& B = bodies_[r.b];
-    lin[r.a] += A.inv_mass * mu_[k];
-    ang[r.a] += A.inv_inertia * cross(ua_[k], mu_[k]);
-    lin[r.b] -= B.inv_mass * mu_[k];
-    ang[r.b] -= B.inv_inertia * cross(ub_[k], mu_[k]);
-    if (records_impulse(r)) row_impulse_[k] += impulse_weight * mu_[k];
+    lin[r.a] += A.inv_mass * work_.mu[k];
+    ang[r.a] += A.inv_inertia * cross(work_.ua[k], work_.mu[k]);
+    lin[r.b] -= B.inv_mass * work_.mu[k];
+    ang[r.b] -= B.inv_inertia * cross(work_.ub[k], work_.mu[k]);
+    if (records_impulse(r)) row_impulse_[k] += impulse_weight * work_.mu[k];
   }
 }
 

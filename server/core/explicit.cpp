@@ -13,15 +13,15 @@ void World::step_explicit(double h, bool rk4) {
   const size_t nb = bodies_.size();
   drive_kinematic(t0);  // their accelerations enter the first stage
   if (!rk4) {
-    constraint_accelerations(acc_lin_, acc_ang_, h, h);
+    constraint_accelerations(work_.acc_lin, work_.acc_ang, h, h);
     for (size_t b = 0; b < nb; ++b) {
       if (bodies_[b].kinematic) continue;
       BodyState& s = state_[b];
       s.x += h * s.v;
       s.th += h * s.w;
       s.q = (s.q * rotation_of_small_angle(h * s.w)).renormalised();
-      s.v += h * acc_lin_[b];
-      s.w += h * acc_ang_[b];
+      s.v += h * work_.acc_lin[b];
+      s.w += h * work_.acc_ang[b];
     }
     mark_state_changed();
   } else {
@@ -46,14 +46,14 @@ void World::step_explicit(double h, bool rk4) {
         drive_kinematic(t0 + c);
         t_ = t0 + c;
       }
-      constraint_accelerations(acc_lin_, acc_ang_, weight[stage], h);
+      constraint_accelerations(work_.acc_lin, work_.acc_ang, weight[stage], h);
       // Store the derivative of the stage: (dx, dth) = (v, w), (dv, dw) = (a, alpha), packed in a BodyState.
       k[stage].resize(nb);
       for (size_t b = 0; b < nb; ++b) {
         k[stage][b].x = state_[b].v;
         k[stage][b].th = state_[b].w;
-        k[stage][b].v = acc_lin_[b];
-        k[stage][b].w = acc_ang_[b];
+        k[stage][b].v = work_.acc_lin[b];
+        k[stage][b].w = work_.acc_ang[b];
       }
     }
     for (size_t b = 0; b < nb; ++b) {

@@ -47,19 +47,19 @@ void World::step_reduced(double h) {
     return;
   }
   const double t1 = t_ + h;
-  // The drives' accelerations at the start: always anew, since after a restore() kin_acc_ holds a later time's.
+  // The drives' accelerations at the start: always anew, since after a restore() work_.kin_acc holds a later time's.
   drive_kinematic(t_);
   // The free forces: gravity and damping inline, unless users' forces or hinge friction need the general sum. Without
   // damping a one-part body's is its weight alone.
   const bool general = options_.hinge_friction != 0 || !forces_.empty();
   const bool undamped = !general && options_.linear_damping == 0 && options_.angular_damping == 0;
   const Vec2 g = options_.gravity;
-  if (general) accumulate_forces(force_, torque_, h);
+  if (general) accumulate_forces(work_.force, work_.torque, h);
   const double cl = options_.linear_damping, ca = options_.angular_damping;
   const auto free_force = [&](int i, Vec2& f, double& tau) HOT_INLINE {
     const Body& body = bodies_[i];
     if (general) {
-      f = force_[i], tau = torque_[i];
+      f = work_.force[i], tau = work_.torque[i];
     } else if (body.single_part) {  // body_force()'s common case, inline
       f = body.mass * (g - cl * state_[i].v);
       tau = -ca * body.inertia * state_[i].w;
@@ -71,7 +71,7 @@ void World::step_reduced(double h) {
   const auto free_acceleration = [&](int i, const Vec2& u) HOT_INLINE {
     const Body& body = bodies_[i];
     const BodyState& s = state_[i];
-    if (body.kinematic) return Vec2(kin_acc_[i] + kin_alpha_[i] * perp(u) - (s.w * s.w) * u);
+    if (body.kinematic) return Vec2(work_.kin_acc[i] + work_.kin_alpha[i] * perp(u) - (s.w * s.w) * u);
     if (undamped && body.single_part) return Vec2(g - (s.w * s.w) * u);
     Vec2 f;
     double tau;
@@ -89,7 +89,7 @@ void World::step_reduced(double h) {
     if (r.rolls) rhs -= rolling_acceleration(static_cast<size_t>(k));
   };
   if (n > 0) {
-    stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, mu_);
+    stats_.regularised_pivots += system_.factor_forward_symmetric<false>(n, row, work_.mu);
     factor_version_ = 0;  // only what backward() needs is kept: nothing may take system_ for a full factorisation
   }
   // Pass 2, backwards: each body's hinge forces once both its rows' are known, then its angular velocity and angle
@@ -117,18 +117,18 @@ void World::step_reduced(double h) {
     }
   };
   if (n > 0)
-    system_.backward(mu_, [&](int k) HOT_INLINE {
+    system_.backward(work_.mu, [&](int k) HOT_INLINE {
       const Row& r = rows_[k];
       Vec2 f;
       double tau;
-      load_on_b(k, mu_.data(), ua0_.data(), ub0_.data(), f, tau);
+      load_on_b(k, work_.mu.data(), ua0_.data(), ub0_.data(), f, tau);
       if (!bodies_[r.b].kinematic) advance(r.b, f, tau, false);
-      if (records_impulse(r)) row_impulse_[k] += h * mu_[k];
+      if (records_impulse(r)) row_impulse_[k] += h * work_.mu[k];
     });
   // Each chain's first body, in its first row only: its whole pose unless the chain grows from its other end.
   for (const ReducedChain& c : reduced_chains_) {
     const Row& r = rows_[c.first];
-    const Vec2& l = mu_[c.first];
+    const Vec2& l = work_.mu[c.first];
     if (!bodies_[r.a].kinematic) advance(r.a, l, cross(ua0_[c.first], l), !c.from_end);
   }
   for (const int b : loose_bodies_) advance(b, Vec2::Zero(), 0.0, true);

@@ -35,8 +35,8 @@ void World::step_shake(double h, bool rattle) {
   drive_kinematic(t1);
   stats_.converged = solve_positions(ua0_, ub0_, 1.0 / h);
   if (rattle) {
-    accumulate_forces(force_, torque_, h);
-    kick(0.5 * h, force_, torque_);
+    accumulate_forces(work_.force, work_.torque, h);
+    kick(0.5 * h, work_.force, work_.torque);
   }
   t_ = t1;
   if (options_.stabilization != Stabilization::None) project_velocities();

@@ -78,16 +78,16 @@ SolverKind solver_from_string(const std::string& s) {
 
 void World::drive_kinematic(double t) {
   const size_t nb = bodies_.size();
-  kin_acc_.resize(nb);
-  kin_alpha_.resize(nb);
+  work_.kin_acc.resize(nb);
+  work_.kin_alpha.resize(nb);
   for (const int b : kinematic_bodies_) {
     BodyState& s = state_[b];
     const Part& p = parts_[bodies_[b].anchor_part];
     if (!p.drive) {  // held still
       s.v.setZero();
       s.w = 0;
-      kin_acc_[b].setZero();
-      kin_alpha_[b] = 0;
+      work_.kin_acc[b].setZero();
+      work_.kin_alpha[b] = 0;
       continue;
     }
     const Kinematics k = p.drive(t);
@@ -97,8 +97,8 @@ void World::drive_kinematic(double t) {
     const Vec2 d = s.x - k.x;
     s.w = k.omega;
     s.v = k.v + k.omega * perp(d);
-    kin_acc_[b] = k.a + k.alpha * perp(d) - k.omega * k.omega * d;
-    kin_alpha_[b] = k.alpha;
+    work_.kin_acc[b] = k.a + k.alpha * perp(d) - k.omega * k.omega * d;
+    work_.kin_alpha[b] = k.alpha;
   }
   mark_state_changed();
 }
@@ -176,8 +176,8 @@ void World::drift(double h) {
 // force depends on its own state only, so the three stages are one pass over the bodies (the same arithmetic).
 void World::kick_drift(double h_kick, double h) {
   if (options_.hinge_friction != 0 || !forces_.empty()) {
-    accumulate_forces(force_, torque_, h);
-    kick(h_kick, force_, torque_);
+    accumulate_forces(work_.force, work_.torque, h);
+    kick(h_kick, work_.force, work_.torque);
     drift(h);
     return;
   }
@@ -308,7 +308,7 @@ void World::step_adaptive(double h) {
     const auto solved = [&] { return stats_.converged || stats_.residual <= tol; };
     const bool whole_ok = finite() && solved();
     const int whole_iterations = stats_.iterations;
-    whole_ = state_;
+    work_.whole = state_;
     restore(start);
     step_fixed(0.5 * s);
     StepStats halves = stats_;
@@ -318,7 +318,8 @@ void World::step_adaptive(double h) {
       halves.add(stats_);
     }
     const bool halves_ok = first_ok && finite() && solved();
-    const double err = whole_ok && halves_ok ? difference(whole_) / richardson : std::numeric_limits<double>::infinity();
+    const double err =
+        whole_ok && halves_ok ? difference(work_.whole) / richardson : std::numeric_limits<double>::infinity();
     total.iterations += whole_iterations;  // every trial's solves count; only an accepted one's state does
     if (err <= tol || s <= h_min * (1 + 1e-9)) {
       total.add(halves);

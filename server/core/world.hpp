@@ -468,7 +468,7 @@ class World {
     const Vec2 gap = (a.x + a.q * r.ra) - (b.x + b.q * r.rb);
     return r.rolls ? Vec2(gap + 2 * roll_offset(k, a, b)) : gap;
   }
-  double position_residual();  // residuals(c_), or the last solve's when the positions have not changed since
+  double position_residual();  // residuals(work_.c), or the last solve's when the positions have not changed since
   // q += W (f, tau) for one dynamic body, f and tau its sums of row multipliers and their moments; with
   // velocity_scale = 1/h the same change is made to its velocity (SHAKE: the multipliers are the step's impulses).
   // Inline: it is the innermost work of every Newton iteration.
@@ -596,11 +596,6 @@ class World {
   double last_h_ = 0;
   double adaptive_h_ = 0;  // the adaptive step's next trial sub-step [s]; 0 = the whole step
   double adaptive_floor_ = 0;  // set_adaptive_floor()
-  std::vector<BodyState> whole_;  // scratch: the adaptive step's trial taken whole
-
-  // Accelerations of kinematic bodies from their drives (the explicit integrators need them).
-  std::vector<Vec2> kin_acc_;
-  std::vector<double> kin_alpha_;
 
   bool has_welds_ = false;
   bool has_rolling_ = false;  // a rolling row exists (rebuild())
@@ -699,9 +694,18 @@ class World {
   }
   mutable Lanes lanes_;  // the second thread (Options::threads)
 
-  // scratch, kept to avoid allocation in the step
-  std::vector<Vec2> ua_, ub_, ua0_, ub0_, c_, mu_, f_, force_, acc_lin_;
-  std::vector<double> tau_, torque_, acc_ang_;
+  // The arc-centre levers at the start of a step, kept while the state has not moved (anchors_version_).
+  std::vector<Vec2> ua0_, ub0_;
+  // The other integrators' per-step scratch (shake.cpp, explicit.cpp, reduced.cpp, constraints.cpp, step.cpp), kept
+  // from step to step only so that a step does not allocate it: the hinges' levers, residuals and multipliers, the
+  // per-body sums of their forces and moments, the users' forces and torques, the explicit methods' accelerations
+  // and the drives' (kin_acc, kin_alpha), and the adaptive step's trial taken whole.
+  struct StepWork {
+    std::vector<Vec2> ua, ub, c, mu, f, force, acc_lin, kin_acc;
+    std::vector<double> tau, torque, acc_ang, kin_alpha;
+    std::vector<BodyState> whole;
+  };
+  StepWork work_;
 };
 
 // Row k of K = G W G^T at the current state for BlockTridiag::factor_forward_symmetric(), its anchors stored in
