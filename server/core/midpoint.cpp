@@ -206,12 +206,10 @@ struct alignas(64) PassAcc {
     bad_hi = std::max(bad_hi, o.bad_hi);
   }
 };
-// The order a pass visits the rows in, which decides on which side a rolling row's contact terms are computed
-// (rolling_once in step_midpoint): from the top (body a's side), from the bottom (body b's), or both (the body at a
-// split, finished before the halves start).
+// The order a pass visits the rows in: from the top (a row finishes its body b, and body a at a chain's start) or from
+// the bottom (its body a, and body b at a chain's end).
 using FromTop = std::integral_constant<int, 0>;
 using FromBottom = std::integral_constant<int, 1>;
-using BothSides = std::integral_constant<int, 2>;
 }  // namespace
 
 namespace {
@@ -442,6 +440,9 @@ void World::step_midpoint(double h) {
     else if (newton_.size() != static_cast<int>(n)) newton_.resize(static_cast<int>(n));
     if (three) m.dx.resize(n);
   }
+  // The rows whose rolling contacts each half of a split pass finds (roll_rows); the shared body's two rows' are
+  // found before the halves start, as the body is finished then.
+  const int top_end = skip >= 0 ? split - 1 : split, bottom_start = skip >= 0 ? split + 1 : split;
   PassAcc lane[2];
   // A dynamic body's vbar - v at the current impulses of its rows (`prev`, `next` as finish_body's).
   const auto mean_velocity = [&](int i, int prev, int next) HOT_INLINE {
@@ -467,12 +468,10 @@ void World::step_midpoint(double h) {
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
-  // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them). `side`
-  // (FromTop, FromBottom, BothSides): which of its rows' rolling terms it computes in a pass that measures the
-  // residual alone (rolling_once below; a Newton pass finds them ahead of the rows that read them).
-  const auto finish_body = [&](int i, int prev, int next, PassAcc& acc, auto newton, auto side) HOT_INLINE {
+  // only checks whether the iterate is the answer; if it is not, a full pass follows and computes them). A rolling
+  // row's contact terms are read from m.roll, which every pass fills ahead of the rows that read them (roll_rows).
+  const auto finish_body = [&](int i, int prev, int next, PassAcc& acc, auto newton) HOT_INLINE {
     constexpr bool kNewton = decltype(newton)::value;
-    constexpr int kSide = decltype(side)::value;
     const double ti = m.t[i], k = m.kt[i];
     double ang = 0, stiff = 0, friction_rows = 0, ang_abs = 0;  // ang_abs: the size of its terms, for rounding
     // With rolling rows (rolling_newton above): sum of dmid_i x L over them, and dmid_j x L per row.
@@ -482,11 +481,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ub0_[prev], ti, k);
       stiff -= v.end.dot(l);  // the arc centre's lever (a rolling contact's share is own_roll)
       if (rows_[prev].rolls) {
-        const int a = rows_[prev].a;
-        const Rolling& c = kSide == FromTop::value || kNewton
-                               ? m.roll[prev]  // computed for body a in this pass, or before it (roll_rows)
-                               : (m.roll[prev] = rolling<kNewton>(m.roll_u0[prev], roll_[prev].radius, m.t[a], ti,
-                                                                  m.kt[a], k));
+        const Rolling& c = m.roll[prev];
         v.mid -= c.mid;
         v.end -= c.end;
         if constexpr (kNewton) {
@@ -508,11 +503,7 @@ void World::step_midpoint(double h) {
       Levers v = levers(ua0_[next], ti, k);
       stiff += v.end.dot(l);
       if (rows_[next].rolls) {
-        const int b = rows_[next].b;
-        const Rolling& c = kSide == FromBottom::value || kNewton
-                               ? m.roll[next]  // computed for body b in this pass, or before it (roll_rows)
-                               : (m.roll[next] = rolling<kNewton>(m.roll_u0[next], roll_[next].radius, ti, m.t[b], k,
-                                                                  m.kt[b]));
+        const Rolling& c = m.roll[next];
         v.mid += c.mid;
         v.end += c.end;
         if constexpr (kNewton) {
@@ -653,45 +644,36 @@ void World::step_midpoint(double h) {
       }
     }
     if (expect_converged)
-      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::false_type{}, FromTop{});
+      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::false_type{});
     // Row k's bodies finished and its gap measured. From the top (side FromTop): body a at a chain's start, body b
     // always, with its next row's side when it has one. From the bottom: body b at a chain's end, body a always, with
-    // its previous row's side. rolling_once: a rolling row's contact terms are computed once per pass, on the side of
-    // its body that the pass finishes first (in finish_body, or here when that body is driven), and read on the
-    // other's: every pass runs over the rows in order with the turns fixed. A Newton pass finds them ahead of the
-    // rows that read them (roll_rows, below) and only reads them.
+    // its previous row's side.
     const auto residual_row = [&](int k, PassAcc& acc, auto newton, auto side) HOT_INLINE {
-      constexpr bool kNewton = decltype(newton)::value;
       const Row& r = rows_[static_cast<size_t>(k)];
       const bool ak = bodies_[r.a].kinematic, bk = bodies_[r.b].kinematic;
-      const auto roll_here = [&] {
-        m.roll[k] = rolling<kNewton>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
-      };
       // (a driven side's levers enter no angular equation: only its end point counts)
       const auto driven_a = [&] { m.mid_a[k] = m.end_a[k] = r.rolls ? Vec2(ua0_[k] + m.roll[k].end) : ua0_[k]; };
       const auto driven_b = [&] { m.mid_b[k] = m.end_b[k] = r.rolls ? Vec2(ub0_[k] - m.roll[k].end) : ub0_[k]; };
       if constexpr (decltype(side)::value == FromTop::value) {
         if (ak) {
-          if (r.rolls && !kNewton) roll_here();
           driven_a();
         } else if (!r.link_prev) {
-          finish_body(r.a, -1, k, acc, newton, side);
+          finish_body(r.a, -1, k, acc, newton);
         }
         if (bk)
           driven_b();
         else if (r.b != skip)
-          finish_body(r.b, k, r.shares_next ? k + 1 : -1, acc, newton, side);
+          finish_body(r.b, k, r.shares_next ? k + 1 : -1, acc, newton);
       } else {
         if (bk) {
-          if (r.rolls && !kNewton) roll_here();
           driven_b();
         } else if (!r.shares_next) {
-          finish_body(r.b, k, -1, acc, newton, side);
+          finish_body(r.b, k, -1, acc, newton);
         }
         if (ak)
           driven_a();
         else if (r.a != skip)
-          finish_body(r.a, r.link_prev ? k - 1 : -1, k, acc, newton, side);
+          finish_body(r.a, r.link_prev ? k - 1 : -1, k, acc, newton);
       }
       const BodyState& a = state_[r.a];
       const BodyState& b = state_[r.b];
@@ -762,14 +744,16 @@ void World::step_midpoint(double h) {
         rhs += (m.rho[r.a] * inv) * col;
       }
     };
-    // A Newton pass's rolling contacts (rolling()) for rows [from, to), found before the pass reads them: their
-    // square root and division, which every term of a row waits for, then overlap from row to row (their inputs, the
-    // turns, are fixed through the pass). The same values as computed in the pass: the same bits.
-    const auto roll_rows = [&](int from, int to) HOT_INLINE {
+    // The rolling contacts (rolling()) of rows [from, to), with their slopes for a Newton pass (`slopes`,
+    // std::true_type) or without them for a pass that measures the residual alone, found before the pass reads them:
+    // their square root and division, which every term of a row waits for, then overlap from row to row (their
+    // inputs, the turns, are fixed through a pass).
+    const auto roll_rows = [&](int from, int to, auto slopes) HOT_INLINE {
       for (int k = from; k < to; ++k) {
         const Row& r = rows_[static_cast<size_t>(k)];
         if (r.rolls)
-          m.roll[k] = rolling<true>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a], m.kt[r.b]);
+          m.roll[k] = rolling<decltype(slopes)::value>(m.roll_u0[k], roll_[k].radius, m.t[r.a], m.t[r.b], m.kt[r.a],
+                                                       m.kt[r.b]);
       }
     };
     // The rows' 3x3 blocks over rows [first, last), their contacts found kRollChunk rows at a time ahead of the rows
@@ -779,14 +763,14 @@ void World::step_midpoint(double h) {
     const auto rows3_down = [&](int first, int last, PassAcc& acc) HOT_INLINE {
       return [&, first, last](int k, auto&&... a) HOT_INLINE {
         if (has_rolling_ && (k - first) % kRollChunk == 0)
-          roll_rows(k == first ? k : k + 1, std::min(k + kRollChunk + 1, last));
+          roll_rows(k == first ? k : k + 1, std::min(k + kRollChunk + 1, last), std::true_type{});
         return row3(k, a..., acc, FromTop{});
       };
     };
     const auto rows3_up = [&](int first, int last, PassAcc& acc) HOT_INLINE {
       return [&, first, last](int k, auto&&... a) HOT_INLINE {
         if (has_rolling_ && (last - 1 - k) % kRollChunk == 0)
-          roll_rows(std::max(k - kRollChunk, first), k == last - 1 ? last : k);
+          roll_rows(std::max(k - kRollChunk, first), k == last - 1 ? last : k, std::true_type{});
         return row3(k, a..., acc, FromBottom{});
       };
     };
@@ -800,9 +784,8 @@ void World::step_midpoint(double h) {
         return;
       }
       // (the shared body's two rows' contacts first: it is finished before the halves)
-      const int top_end = skip >= 0 ? split - 1 : split, bottom_start = skip >= 0 ? split + 1 : split;
-      if (has_rolling_ && skip >= 0) roll_rows(split - 1, split + 1);
-      if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::true_type{}, BothSides{});
+      if (has_rolling_ && skip >= 0) roll_rows(split - 1, split + 1, std::true_type{});
+      if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::true_type{});
       lanes_.run([&](int l) {
         if (l == 0) {
           const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
@@ -834,7 +817,7 @@ void World::step_midpoint(double h) {
         residual_row(win_lo - 1, edge, std::true_type{}, FromTop{});
         const Row& r = rows_[static_cast<size_t>(win_lo)];  // its body b, the first row's body a, is the window's
         if (r.link_prev && !bodies_[r.a].kinematic)
-          finish_body(r.a, win_lo - 1, win_lo, lane[0], std::true_type{}, FromTop{});
+          finish_body(r.a, win_lo - 1, win_lo, lane[0], std::true_type{});
       }
       const auto top = [&](auto&&... a) HOT_INLINE { return row(a..., lane[0], FromTop{}); };
       lane[0].pivots += newton_.factor_down(win_hi + 1, top, m.dlam, win_lo);
@@ -855,7 +838,7 @@ void World::step_midpoint(double h) {
       if (win_hi + 1 < static_cast<int>(n)) {
         const Row& r = rows_[static_cast<size_t>(win_hi + 1)];
         if (r.link_prev && !bodies_[r.a].kinematic)
-          finish_body(r.a, win_hi, win_hi + 1, edge, std::false_type{}, FromTop{});
+          finish_body(r.a, win_hi, win_hi + 1, edge, std::false_type{});
         residual_row(win_hi + 1, edge, std::false_type{}, FromTop{});
       }
       skip = saved_skip;
@@ -866,10 +849,14 @@ void World::step_midpoint(double h) {
       window_pass();
     } else if (expect_converged) {
       if (split == 0) {
+        if (has_rolling_) roll_rows(0, static_cast<int>(n), std::false_type{});
         for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
       } else {
-        if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::false_type{}, BothSides{});
+        if (has_rolling_ && skip >= 0) roll_rows(split - 1, split + 1, std::false_type{});
+        if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::false_type{});
         lanes_.run([&](int l) {
+          if (has_rolling_)
+            roll_rows(l == 0 ? 0 : bottom_start, l == 0 ? top_end : static_cast<int>(n), std::false_type{});
           if (l == 0)
             for (int k = 0; k < split; ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
           else
@@ -887,7 +874,7 @@ void World::step_midpoint(double h) {
       }
     }
     if (!checked && !windowed) {
-      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{}, FromTop{});
+      for (const int b : loose_bodies_) finish_body(b, -1, -1, lane[0], std::true_type{});
       if (n > 0) newton_pass();
       whole_after_window = guess_window;
       lane[0].merge(lane[1]);

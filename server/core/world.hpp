@@ -673,7 +673,7 @@ class World {
     // With rolling rows (midpoint.cpp, rolling_newton): per body the exact d rho / d t, per row d rho_a / d t_b and
     // d rho_b / d t_a, the 3x3 Newton system and its solution (dL_k, dt_b(k)).
     std::vector<double> jac, couple_ab, couple_ba;
-    std::vector<RollingTerms> roll;  // per rolling row, this pass's contact terms (midpoint.cpp, rolling_once)
+    std::vector<RollingTerms> roll;  // per rolling row, this pass's contact terms (midpoint.cpp, roll_rows)
     BlockTridiag3 newton3;
     std::vector<Vec3> dx;
   };
