@@ -454,13 +454,15 @@ void World::step_midpoint(double h) {
   // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
   // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. The
   // excess is at most the gap, so a gap no larger than the worst excess so far, nor than the tolerance, leaves it as it
-  // is, and its square root and floor are not computed (a NaN or infinite gap always is). An excess beyond the
-  // tolerance marks row k short (PassAcc::mark: a window's bounds).
+  // is, and its square root and floor are not computed (a NaN or infinite gap always is); nor does a gap within its
+  // floor (its excess is 0, as sqrt(fl(f f)) is f), whose square root is not taken: at rest most rows' gaps are.
+  // An excess beyond the tolerance marks row k short (PassAcc::mark: a window's bounds).
   const auto count_gap = [tol](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k) HOT_INLINE {
     const double gap2 = gap.squaredNorm();
     acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
     if (gap2 <= acc.worst_gap2 && gap2 <= tol * tol) return;
     const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
+    if (gap2 <= floor * floor) return;
     const double excess = std::max(std::sqrt(gap2) - floor, 0.0);
     acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
     if (!(excess <= tol)) acc.mark(k);
