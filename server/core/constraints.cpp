@@ -433,4 +433,17 @@ void World::constraint_accelerations(std::vector<Vec2>& lin, std::vector<double>
   }
 }
 
+// The explicit integrators' post-stabilisation (euler.cpp, rk4.cpp): back onto C(q) = 0 along the mass-metric
+// normal (a Newton projection of the positions), then onto G v = 0; neither lowers their order.
+void World::stabilise_explicit() {
+  if (options_.stabilization == Stabilization::Position) {
+    start_anchors();
+    factor_system(ua0_, ub0_);
+    stats_.converged = solve_positions(ua0_, ub0_, 0.0);
+  } else {
+    stats_.residual = position_residual();  // what is left unprojected, for the statistics
+  }
+  if (options_.stabilization != Stabilization::None) project_velocities();
+}
+
 }  // namespace ladder::core

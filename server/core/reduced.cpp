@@ -43,7 +43,7 @@ bool World::reduced_applies() {
 
 void World::step_reduced(double h) {
   if (!reduced_applies()) {
-    step_shake(h, false);
+    step_shake(h);
     return;
   }
   const double t1 = t_ + h;

@@ -12,9 +12,10 @@
 //                             own coordinates (its first body's pose, then every body's angle) -> every other body
 //                             placed and moved by its hinge: no constraint solve, the hinges hold by construction
 //
-// Each integrator's step is in its own file: shake.cpp (symplectic_euler, rattle, projection), explicit.cpp
-// (euler, rk4), reduced.cpp and midpoint.cpp. This file holds what they share: forces, drives, the fixed and adaptive
-// steps, the work of a step, snapshots and impulses.
+// Each integrator's step is in its own file: shake.cpp (symplectic_euler, with the position stage RATTLE shares),
+// rattle.cpp, projection.cpp, euler.cpp, rk4.cpp (the two explicit ones post-stabilised by constraints.cpp),
+// reduced.cpp and midpoint.cpp. This file holds what they share: forces, drives, the fixed and adaptive steps, the
+// work of a step, snapshots and impulses.
 #include "core/world.hpp"
 #include "core/fp_mode.hpp"
 #include "core/hot_inline.hpp"
@@ -362,10 +363,10 @@ void World::step_fixed(double h) {
   const double t0 = t_;
   start_work();
   switch (options_.integrator) {
-    case Integrator::SymplecticEuler: step_shake(h, false); break;
-    case Integrator::Rattle: step_shake(h, true); break;
-    case Integrator::Euler: step_explicit(h, false); break;
-    case Integrator::RK4: step_explicit(h, true); break;
+    case Integrator::SymplecticEuler: step_shake(h); break;
+    case Integrator::Rattle: step_rattle(h); break;
+    case Integrator::Euler: step_euler(h); break;
+    case Integrator::RK4: step_rk4(h); break;
     case Integrator::Projection: step_projection(h); break;
     case Integrator::Reduced: step_reduced(h); break;
     case Integrator::Midpoint: step_midpoint(h); break;  // its own exact work and dissipation

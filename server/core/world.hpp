@@ -523,11 +523,16 @@ class World {
   void kick(double h, const std::vector<Vec2>& f, const std::vector<double>& tau);
   void drift(double h);
   void kick_drift(double h_kick, double h);
-  void step_shake(double h, bool rattle);
-  void step_explicit(double h, bool rk4);
-  void step_projection(double h);
-  void step_reduced(double h);
-  void step_midpoint(double h);  // midpoint.cpp
+  // The integrators, each in its own file (docs/model.md section 3).
+  void shake_positions(double h, double h_kick);  // shake.cpp: SHAKE's position stage, shared with RATTLE
+  void step_shake(double h);       // shake.cpp: symplectic_euler
+  void step_rattle(double h);      // rattle.cpp
+  void step_projection(double h);  // projection.cpp
+  void step_euler(double h);       // euler.cpp
+  void step_rk4(double h);         // rk4.cpp
+  void stabilise_explicit();       // constraints.cpp: the explicit integrators' post-stabilisation
+  void step_reduced(double h);     // reduced.cpp
+  void step_midpoint(double h);    // midpoint.cpp
   void rescue_guess(double h, const double* scales, size_t count);  // midpoint.cpp
   void apply_seed(double s);                                         // midpoint.cpp
   bool rescuing_ = false;  // in rescue_guess's shorter steps
@@ -696,10 +701,10 @@ class World {
 
   // The arc-centre levers at the start of a step, kept while the state has not moved (anchors_version_).
   std::vector<Vec2> ua0_, ub0_;
-  // The other integrators' per-step scratch (shake.cpp, explicit.cpp, reduced.cpp, constraints.cpp, step.cpp), kept
-  // from step to step only so that a step does not allocate it: the hinges' levers, residuals and multipliers, the
-  // per-body sums of their forces and moments, the users' forces and torques, the explicit methods' accelerations
-  // and the drives' (kin_acc, kin_alpha), and the adaptive step's trial taken whole.
+  // The other integrators' per-step scratch (their files, constraints.cpp and step.cpp), kept from step to step only
+  // so that a step does not allocate it: the hinges' levers, residuals and multipliers, the per-body sums of their
+  // forces and moments, the users' forces and torques, the explicit methods' accelerations and the drives' (kin_acc,
+  // kin_alpha), and the adaptive step's trial taken whole.
   struct StepWork {
     std::vector<Vec2> ua, ub, c, mu, f, force, acc_lin, kin_acc;
     std::vector<double> tau, torque, acc_ang, kin_alpha;
