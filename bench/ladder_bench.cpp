@@ -13,7 +13,8 @@
 //    ladderd's loop costs between interventions. LadderTipped...: the 10 000-block ladder tipped, with the two
 //    integrators that run it at 1 ms.
 //  - ...Rolling: Ladder, LadderHeld and LadderTipped with rolling hinges (end radius 0.4 of the thickness), N = 1000
-//    and 10 000, against the same workloads with the paper's corner hinges (LadderHeld, LadderTipped also at 1000).
+//    and 10 000 (LadderHeldRolling also 100 000), against the same workloads with the paper's corner hinges
+//    (LadderHeld, LadderTipped also at 1000).
 //  - FreeChainStraight: config/scenes/free-chain.toml's chain of N blocks from its straight start under gravity,
 //    N = 1000 to 100 000; ...Shake: with symplectic_euler, the former default; LadderHeldShake likewise.
 //  - ...Fast: the same workloads with the `fast` accuracy preset's engine settings; ChainHangingProjection: the
@@ -262,6 +263,7 @@ BENCHMARK(LadderRolling)->Arg(10)->Arg(100)->Arg(1000)->Iterations(1500)->Unit(b
 BENCHMARK(LadderHeld)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderHeldRolling)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderHeldRolling)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
+BENCHMARK(LadderHeldRolling)->Arg(100000)->Iterations(30)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTipped)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTippedRolling)->Arg(1000)->Iterations(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(LadderTippedRolling)->Arg(10000)->Iterations(200)->Unit(benchmark::kMillisecond);
