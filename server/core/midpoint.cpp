@@ -124,7 +124,8 @@ constexpr double kJacFloor = 0.05;  // the floor of a body's turn stiffness (fin
 // A solve still short after solver.max_iterations is rescued (step_midpoint, rescue_guess below): within kNearGap of
 // closing the hinges, by kExactIterations more iterations of the exact Newton; farther, by Newton again from the
 // solution of shorter steps from the same start (a homotopy in the step's length: kRescueFirst, then kRescueSecond,
-// as shares of h), and last by kLongIterations more from where that left it. (Measured at a step of the whipping
+// as shares of h), and last by kLongIterations more from where that left it, the turn stiffness floored as after each
+// homotopy (the exact Newton of a near try just before diverged there). (Measured at a step of the whipping
 // 10 000-block chain whose Newton cycled for 30 iterations: with 200 allowed, the steps of 0.990 to 1.015 ms from the
 // same start every 0.001 ms all converged, in 10 to 150 iterations.)
 constexpr double kNearGap = 1e-6;
@@ -930,6 +931,7 @@ void World::step_midpoint(double h) {
         limit = iteration + options_.max_iterations + 1;
       } else if (!rescuing_ && far_rescues == 2) {  // Newton wanders out of its cycle in the end (kLongIterations)
         ++far_rescues;
+        if (!has_rolling_) three = false;
         limit = iteration + kLongIterations;
       } else {
         break;
