@@ -922,17 +922,14 @@ void World::step_midpoint(double h) {
         make_exact();
         if (split > 0) m.newton3.resize(static_cast<int>(n)), m.dx.resize(n);
         limit = iteration + kExactIterations;
-      } else if (!rescuing_ && far_rescues < 2) {
-        if (far_rescues++ == 0)
-          rescue_guess(h, kRescueFirst.data(), kRescueFirst.size());
-        else
-          rescue_guess(h, kRescueSecond.data(), kRescueSecond.size());
-        if (!has_rolling_) three = false;  // (from far the floored Newton fares better than the exact one)
-        limit = iteration + options_.max_iterations + 1;
-      } else if (!rescuing_ && far_rescues == 2) {  // Newton wanders out of its cycle in the end (kLongIterations)
+      } else if (!rescuing_ && far_rescues < 3) {
+        // Twice from shorter steps' solutions; the third time on from here, for Newton wanders out of its cycle in
+        // the end (kLongIterations).
+        if (far_rescues == 0) rescue_guess(h, kRescueFirst.data(), kRescueFirst.size());
+        if (far_rescues == 1) rescue_guess(h, kRescueSecond.data(), kRescueSecond.size());
+        limit = iteration + (far_rescues < 2 ? options_.max_iterations + 1 : kLongIterations);
         ++far_rescues;
-        if (!has_rolling_) three = false;
-        limit = iteration + kLongIterations;
+        if (!has_rolling_) three = false;  // (from far the floored Newton fares better than the exact one)
       } else {
         break;
       }
