@@ -16,6 +16,7 @@
 #include <fstream>
 #include <numbers>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -514,6 +515,21 @@ class Reader {
     const auto it = origins_.find(key);
     return {source_, it == origins_.end() ? std::string_view() : std::string_view(it->second), std::string(key)};
   }
+  // Of keys whose values disagree, the one to blame: the first given that the user just gave (a --set, or a live
+  // setting), else the first given; empty when none was given.
+  std::string_view blamed(std::initializer_list<std::string_view> keys) const {
+    std::string_view key;
+    for (const std::string_view k : keys) {
+      if (!find(k)) continue;
+      if (key.empty() || (overridden(k) && !overridden(key))) key = k;
+    }
+    return key;
+  }
+  // Where a given key's value came from ("file.toml:24:14" or "--set ladder.hinge=corner"); empty when not given.
+  std::string where(std::string_view key) const {
+    const toml::node* n = find(key);
+    return n ? site(key).at(n->source().begin) : std::string();
+  }
 
   void get(std::string_view key, int& out) const {
     if (const toml::node* n = find(key)) out = to_int(*n, site(key), key_def(key).range);
@@ -576,35 +592,41 @@ void read_blocks(const Reader& r, model::LadderSpec& l) {
   const std::string message = "ladder.masses has " + std::to_string(count) + " entries but ladder.blocks is " +
                               std::to_string(l.blocks);
   // Blame whichever of the two the user just changed on the command line.
-  if (r.overridden("ladder.blocks") && !r.overridden("ladder.masses"))
-    r.site("ladder.blocks").fail(*r.find("ladder.blocks"), message);
-  s.fail(*masses, message);
+  const std::string_view key = r.blamed({"ladder.masses", "ladder.blocks"});
+  r.site(key).fail(*r.find(key), message);
 }
 
-// The rolling hinge's keys against each other and the thickness, each error at the key that makes it.
+// The rolling hinge's keys against each other and the thickness. Each error is at the key that makes it, or at the
+// other key of the pair when only that one came from the command line; the message then says where the first is.
 void check_hinge(const Reader& r, const model::LadderSpec& l) {
-  const auto fail_at = [&](std::string_view key, const std::string& message) {
-    if (const toml::node* n = r.find(key)) r.site(key).fail(*n, message);
-    throw SceneError(std::string(r.source()) + ": " + message);
+  const auto fail = [&](std::string_view key, std::string_view other, const std::string& message) {
+    const std::string_view at = r.blamed({key, other});
+    if (at.empty()) throw SceneError(std::string(r.source()) + ": " + message);
+    const std::string_view left = at == key ? other : key;
+    const std::string there = r.overridden(at) && !r.overridden(left) ? r.where(left) : std::string();
+    const std::string where_left = there.empty() ? "" : " (" + std::string(left) + " is given at " + there + ")";
+    r.site(at).fail(*r.find(at), message + where_left);
   };
   if (l.end_radius > 0.5 * l.thickness)
-    fail_at(r.find("ladder.end_radius") ? "ladder.end_radius" : "ladder.thickness",
-            "ladder.end_radius must be at most half of ladder.thickness (got " + format_number(l.end_radius) +
-                " m with a thickness of " + format_number(l.thickness) + " m)");
+    fail("ladder.end_radius", "ladder.thickness",
+         "ladder.end_radius must be at most half of ladder.thickness (got " + format_number(l.end_radius) +
+             " m with a thickness of " + format_number(l.thickness) + " m)");
   // A pair's two arc centres are 2 end_radius apart and their direction is the contact's: at a radius below a
   // millionth of the thickness that direction is lost in the rounding of the blocks' positions (at 1e-300 the two
   // centres are one point, and the engine could not place the hinge at all).
   if (l.end_radius > 0 && l.end_radius < 1e-6 * l.thickness)
-    fail_at("ladder.end_radius", "ladder.end_radius must be 0 (the corner hinge) or at least 1e-6 of ladder.thickness "
-                                 "(got " + format_number(l.end_radius) + " m with a thickness of " +
-                                 format_number(l.thickness) + " m): below that the contact's direction is lost in "
-                                 "the rounding of the blocks' positions");
+    fail("ladder.end_radius", "ladder.thickness",
+         "ladder.end_radius must be 0 (the corner hinge) or at least 1e-6 of ladder.thickness (got " +
+             format_number(l.end_radius) + " m with a thickness of " + format_number(l.thickness) +
+             " m): below that the contact's direction is lost in the rounding of the blocks' positions");
   if (l.end_radius > 0 && l.hinge != model::HingeKind::Rolling)
-    fail_at("ladder.end_radius", "ladder.end_radius needs ladder.hinge = \"rolling\" (a corner hinge turns about "
-                                 "the corner itself)");
+    fail("ladder.end_radius", "ladder.hinge",
+         "ladder.end_radius needs ladder.hinge = \"rolling\" (a corner hinge turns about the corner itself: with "
+         "ladder.hinge = \"corner\", ladder.end_radius must be 0)");
   if (l.hinge == model::HingeKind::Rolling && l.hinge_inset != 0)
-    fail_at("ladder.hinge_inset", "ladder.hinge_inset is for corner hinges; a rolling hinge's pivot is set by "
-                                  "ladder.end_radius");
+    fail("ladder.hinge_inset", "ladder.hinge",
+         "ladder.hinge_inset is for corner hinges; a rolling hinge's pivot is set by ladder.end_radius (with "
+         "ladder.hinge = \"rolling\", ladder.hinge_inset must be 0)");
 }
 
 void read_ladder(const Reader& r, model::LadderSpec& l) {
@@ -691,12 +713,8 @@ void check_gravity(const Reader& r, const Vec2& g) {
 void check_substep(const Reader& r, const Scene& s) {
   if (s.dt / s.substeps >= kMinSubstep * (1 - 1e-12)) return;  // 1e-4 / 1000 is 1e-7 up to rounding
   // Blame the key that the user just gave (a --set, or a live setting), else the file's substeps, dt or preset.
-  std::string_view key;
-  for (const std::string_view k : {"sim.substeps", "sim.dt", "sim.accuracy"}) {
-    if (!r.find(k)) continue;
-    if (key.empty() || (r.overridden(k) && !r.overridden(key))) key = k;
-  }
-  const toml::node* n = r.find(key);
+  const std::string_view key = r.blamed({"sim.substeps", "sim.dt", "sim.accuracy"});
+  const toml::node* n = key.empty() ? nullptr : r.find(key);
   const std::string message = "sim.dt / sim.substeps must be >= 1e-07 s, the smallest time step (got " +
                               format_number(s.dt) + " / " + std::to_string(s.substeps) + " = " +
                               format_number(s.dt / s.substeps) + " s)";

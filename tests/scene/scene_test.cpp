@@ -716,9 +716,25 @@ TEST(Values, RollingHingeKeys) {
   expect_error("[ladder]\nhinge = \"rolling\"\nhinge_inset = 0.2\n", "<string>:3:15: ",
                {"ladder.hinge_inset is for corner hinges"});
   expect_error("[ladder]\nhinge = \"pivot\"\n", "<string>:2:9: ", {"ladder.hinge must be", "corner", "rolling"});
-  // A thickness given on the command line that leaves the file's radius too large is blamed on the radius.
-  expect_error("[ladder]\nhinge = \"rolling\"\nend_radius = 0.006\n", "<string>:3:14: ", {"at most half"},
+  // A key given on the command line that leaves a key of the file in conflict is blamed, and the message says where
+  // the file's key is: a thickness that leaves the radius too large, a corner hinge with the file's radius, a rolling
+  // hinge with the file's inset. Given both in the file or both on the command line, the first key is blamed.
+  expect_error("[ladder]\nhinge = \"rolling\"\nend_radius = 0.006\n", "--set ladder.thickness=0.01: ",
+               {"at most half of ladder.thickness (got 0.006 m with a thickness of 0.01 m) (ladder.end_radius is "
+                "given at <string>:3:14)"},
                {"ladder.thickness=0.01"});
+  expect_error("[ladder]\nhinge = \"rolling\"\nend_radius = 0.004\n", "--set ladder.hinge=corner: ",
+               {"ladder.end_radius needs ladder.hinge = \"rolling\"", "ladder.end_radius must be 0)",
+                "(ladder.end_radius is given at <string>:3:14)"},
+               {"ladder.hinge=corner"});
+  expect_error("[ladder]\nhinge_inset = 0.2\n", "--set ladder.hinge=rolling: ",
+               {"ladder.hinge_inset is for corner hinges", "(ladder.hinge_inset is given at <string>:2:15)"},
+               {"ladder.hinge=rolling"});
+  expect_error("[ladder]\nend_radius = 0.004\n", "--set ladder.end_radius=0.005: ",
+               {"ladder.end_radius needs ladder.hinge = \"rolling\""},
+               {"ladder.end_radius=0.005", "ladder.hinge=corner"});
+  const std::string both = error_of("[ladder]\nhinge = \"corner\"\nend_radius = 0.004\n", {});
+  EXPECT_EQ(both.find(" is given at "), std::string::npos) << both;
 }
 
 }  // namespace
