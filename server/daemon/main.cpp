@@ -102,8 +102,9 @@ int main(int argc, char** argv) {
   app.add_option("--resimulate", resimulate,
                  "with --offline: re-run a session log FILE and compare every recorded state bit for bit")
       ->check(CLI::ExistingFile);
-  auto* duration =
-      app.add_option("--duration", o.duration, "simulated time to run [s] (offline)")->check(a_number(false));
+  auto* duration = app.add_option("--duration", o.duration,
+                                  "simulated time to run [s] (required with --offline, but for --resimulate)")
+                       ->check(a_number(false));
   app.add_option("--events", o.events, "write events as JSON lines to FILE (offline)");
   app.add_option("--trajectory", o.trajectory, "write block centres and angles every 10 ms as CSV to FILE (offline)");
   app.add_option("--summary", o.summary, "write a JSON summary (steps, speed, hinge error, energy) to FILE (offline)");

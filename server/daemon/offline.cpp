@@ -155,6 +155,7 @@ int run_offline(const OfflineOptions& o) {
   json summary{{"scene", sc.name},
                {"failed", false},
                {"blocks", blocks},
+               {"logic", sc.ladder.logic},
                {"dt", sc.dt},
                {"integrator", core::to_string(sc.options.integrator)},
                {"solver", core::to_string(sc.options.solver)},

@@ -130,6 +130,7 @@ TEST_F(Offline, SetOverridesTheScene) {
   ASSERT_EQ(r.code, 0) << r.output;
   const json s = json::parse(slurp(path("sum.json")));
   EXPECT_EQ(s["blocks"], 3);
+  EXPECT_EQ(s["logic"], true);
   EXPECT_EQ(s["integrator"], "rk4");
   EXPECT_EQ(s["steps"], 50);
   EXPECT_EQ(s["settings"]["sim.integrator"], "rk4");
