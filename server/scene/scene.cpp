@@ -515,8 +515,8 @@ class Reader {
     const auto it = origins_.find(key);
     return {source_, it == origins_.end() ? std::string_view() : std::string_view(it->second), std::string(key)};
   }
-  // Of keys whose values disagree, the one to blame: the first given that the user just gave (a --set, or a live
-  // setting), else the first given; empty when none was given.
+  // Of keys whose values disagree, the one to blame: the first of them that the user has just given (by --set, or as
+  // a live setting), else the first given at all; empty when none was given.
   std::string_view blamed(std::initializer_list<std::string_view> keys) const {
     std::string_view key;
     for (const std::string_view k : keys) {
