@@ -736,9 +736,8 @@ void check_drag(const Reader& r, const Scene& s) {
     // Blame the drag when it was given here, else the step that was (a live `set sim.dt` under a strong drag).
     std::string_view blame = key;
     if (!r.find(key) || (!r.overridden(key) && (r.overridden("sim.dt") || r.overridden("sim.substeps"))))
-      for (const std::string_view k : {"sim.dt", "sim.substeps", "sim.accuracy"})
-        if (r.find(k)) blame = k;
-    if (const toml::node* n = r.find(blame)) r.site(blame).fail(*n, message);
+      blame = r.blamed({"sim.dt", "sim.substeps", "sim.accuracy"});
+    if (const toml::node* n = blame.empty() ? nullptr : r.find(blame)) r.site(blame).fail(*n, message);
     throw SceneError(std::string(r.source()) + ": " + message);  // cannot happen: one of them was given
   }
 }

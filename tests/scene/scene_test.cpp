@@ -569,6 +569,20 @@ TEST(Overrides, CreateAMissingTable) {
   EXPECT_EQ(s.options.max_iterations, 7);
 }
 
+// A step given on the command line that makes the file's drag too strong is blamed, not the file's other step keys
+// (it named the file's sim.accuracy, the last of them given there).
+TEST(Overrides, AStepThatMakesTheFilesDragTooStrongIsBlamed) {
+  const std::string text = "[sim]\ndt = 0.001\nsubsteps = 1\naccuracy = \"balanced\"\n[damping]\nlinear = 600\n";
+  EXPECT_EQ(error_of(text, {"sim.dt=0.002"}),
+            "--set sim.dt=0.002: damping.linear must be <= 1 / (sim.dt / sim.substeps) = 500 /s, so that one step "
+            "takes at most a block's whole velocity (got 600 at sim.dt = 0.002 s, sim.substeps = 1)");
+  // All of them in the file: the drag itself.
+  std::string slow = text;
+  slow.replace(slow.find("0.001"), 5, "0.002");
+  const std::string own = error_of(slow);
+  EXPECT_EQ(own.substr(0, own.find(" must")), "<string>:6:10: damping.linear") << own;
+}
+
 TEST(Overrides, TheLastOneWins) {
   const Scene s = parse_scene("", "<string>", {"sim.dt=0.002", "sim.dt=0.003"});
   EXPECT_EQ(s.dt, 0.003);
