@@ -189,9 +189,10 @@ struct alignas(64) PassAcc {
   double dt_max = 0, cross_max = 0, lam_max2 = 0;          // its tracked corrections, the largest impulse
   int pivots = 0;                                          // regularised pivots
   int bad_lo = std::numeric_limits<int>::max(), bad_hi = -1;  // the first and last rows short of the tolerances
-  void mark(int k) {
-    bad_lo = std::min(bad_lo, k);
-    bad_hi = std::max(bad_hi, k);
+  // Rows lo to hi marked when `bad`, by selects rather than a branch (the residuals it tests lie near their lines).
+  void mark_if(bool bad, int lo, int hi) {
+    bad_lo = std::min(bad_lo, bad ? lo : std::numeric_limits<int>::max());
+    bad_hi = std::max(bad_hi, bad ? hi : -1);
   }
   void merge(const PassAcc& o) {
     worst_rho = std::max(worst_rho, o.worst_rho);
@@ -453,20 +454,20 @@ void World::step_midpoint(double h) {
     m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
   };
   // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
-  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. The
-  // excess is at most the gap, so a gap no larger than the worst excess so far, nor than the tolerance, leaves it as it
-  // is, and its square root and floor are not computed (a NaN or infinite gap always is); nor does a gap within its
-  // floor (its excess is 0, as sqrt(fl(f f)) is f), whose square root is not taken: at rest most rows' gaps are.
-  // An excess beyond the tolerance marks row k short (PassAcc::mark: a window's bounds).
-  const auto count_gap = [tol](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k) HOT_INLINE {
+  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. An
+  // excess beyond the tolerance marks row k short (PassAcc::mark_if: a window's bounds), unless `marks` is
+  // std::false_type (the end state's measure, which no window reads). No branch on the gap: at rest the gaps lie about
+  // the tolerance and their rounding floor, and tests that skipped the square root of the gaps within either went
+  // either way at random (callgrind's branch model: 1.6 million mispredictions in 300 steps of a held ladder of 10 000
+  // blocks at rest; docs/benchmarks.md, "The rest regression found").
+  const auto count_gap = [tol](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k,
+                               auto marks) HOT_INLINE {
     const double gap2 = gap.squaredNorm();
     acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
-    if (gap2 <= acc.worst_gap2 && gap2 <= tol * tol) return;
     const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
-    if (gap2 <= floor * floor) return;
     const double excess = std::max(std::sqrt(gap2) - floor, 0.0);
     acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
-    if (!(excess <= tol)) acc.mark(k);
+    if constexpr (decltype(marks)::value) acc.mark_if(!(excess <= tol), k, k);
   };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
@@ -554,12 +555,10 @@ void World::step_midpoint(double h) {
     const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
     const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * bodies_[i].gyration;
     acc.worst_rho = std::isfinite(rho_excess) ? std::max(acc.worst_rho, rho_excess) : kInfinity;
-    if (!(rho_excess <= kRhoShare * tol)) {  // (a window's bounds: below)
-      if (prev >= 0) acc.mark(prev);
-      if (next >= 0) acc.mark(next);
-    } else if constexpr (!kNewton) {  // (a check's: window_from_guess)
-      acc.fine_rho = std::max(acc.fine_rho, rho_excess);
-    }
+    const bool short_rho = !(rho_excess <= kRhoShare * tol);  // (a window's bounds: below; no branch, as count_gap)
+    const int hi = std::max(prev, next), lo = std::min(prev, next) >= 0 ? std::min(prev, next) : hi;  // (its rows)
+    acc.mark_if(short_rho && hi >= 0, lo, hi);
+    if constexpr (!kNewton) acc.fine_rho = std::max(acc.fine_rho, short_rho ? 0.0 : rho_excess);  // (window_from_guess)
   };
   // A body's turn moved by Newton's correction dt, limited (kMaxTurnChange, kMaxT).
   // With `track` (std::true_type) it records what newton_remainder needs; dl is the sum of the 1-norms of the
@@ -683,7 +682,7 @@ void World::step_midpoint(double h) {
       const Vec2 pa = ak ? Vec2(a.x + m.end_a[k]) : Vec2(a.x + h * (a.v + m.vbar[r.a]) + m.end_a[k]);
       const Vec2 pb = bk ? Vec2(b.x + m.end_b[k]) : Vec2(b.x + h * (b.v + m.vbar[r.b]) + m.end_b[k]);
       const Vec2 gap = pa - pb;
-      count_gap(gap, pa, pb, acc, k);
+      count_gap(gap, pa, pb, acc, k, std::true_type{});
       return gap;
     };
     // The same, then the row's Newton blocks, for BlockTridiag's factorisation.
@@ -853,18 +852,22 @@ void World::step_midpoint(double h) {
     } else if (expect_converged) {
       if (split == 0) {
         if (has_rolling_) roll_rows(0, static_cast<int>(n), std::false_type{});
-        for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
+        PassAcc acc;  // (a local, merged after: the compiler keeps its fields in registers through the rows)
+        for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, acc, std::false_type{}, FromTop{});
+        lane[0].merge(acc);
       } else {
         if (has_rolling_ && skip >= 0) roll_rows(split - 1, split + 1, std::false_type{});
         if (skip >= 0) finish_body(skip, split - 1, split, lane[0], std::false_type{});
         lanes_.run([&](int l) {
           if (has_rolling_)
             roll_rows(l == 0 ? 0 : bottom_start, l == 0 ? top_end : static_cast<int>(n), std::false_type{});
+          PassAcc acc;  // (as above)
           if (l == 0)
-            for (int k = 0; k < split; ++k) residual_row(k, lane[0], std::false_type{}, FromTop{});
+            for (int k = 0; k < split; ++k) residual_row(k, acc, std::false_type{}, FromTop{});
           else
             for (int k = static_cast<int>(n) - 1; k >= split; --k)
-              residual_row(k, lane[1], std::false_type{}, FromBottom{});
+              residual_row(k, acc, std::false_type{}, FromBottom{});
+          lane[l].merge(acc);
         });
       }
       lane[0].merge(lane[1]);
@@ -1001,10 +1004,12 @@ void World::step_midpoint(double h) {
     // (`out`), for the bound of what they leave.
     bool opening = false;
     PassAcc out[2];
-    const auto region = [&](int k, int l) -> PassAcc& {
-      return opening && (k < win_lo || k > win_hi) ? out[l] : lane[l];
+    // (`open`: std::true_type when opening, so that the other passes' rows take their lane without a test)
+    const auto region = [&](int k, int l, auto open) HOT_INLINE -> PassAcc& {
+      if constexpr (decltype(open)::value) return k < win_lo || k > win_hi ? out[l] : lane[l];
+      return lane[l];
     };
-    const auto update = [&](auto track) HOT_INLINE {
+    const auto update = [&](auto track, auto open) HOT_INLINE {
       if (windowed) {  // the window's rows, and its first row's body a (a whole pass corrects it with the row before)
         newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, lane[0], FromTop{}); }, win_hi + 1, win_lo);
         const Row& r = rows_[static_cast<size_t>(win_lo)];
@@ -1016,7 +1021,7 @@ void World::step_midpoint(double h) {
         if (three)
           m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); });
         else
-          newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0), FromTop{}); });
+          newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0, open), FromTop{}); });
       } else if (n > 0) {
         // The shared body's turn needs row split's impulse final (lane 0 corrects it): applied first.
         m.lam[split] += three ? Vec2(m.dx[split].head<2>()) : m.dlam[split];
@@ -1025,12 +1030,14 @@ void World::step_midpoint(double h) {
             if (three)
               m.newton3.backward(m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[0], FromTop{}); }, split);
             else
-              newton_.backward(m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0), FromTop{}); }, split);
+              newton_.backward(
+                  m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 0, open), FromTop{}); }, split);
           } else {
             if (three)
               m.newton3.downward(split, m.dx, [&](int k) HOT_INLINE { done3(k, track, lane[1], FromBottom{}); });
             else
-              newton_.downward(split, m.dlam, [&](int k) HOT_INLINE { done2(k, track, region(k, 1), FromBottom{}); });
+              newton_.downward(split, m.dlam,
+                               [&](int k) HOT_INLINE { done2(k, track, region(k, 1, open), FromBottom{}); });
           }
         });
       }
@@ -1048,10 +1055,12 @@ void World::step_midpoint(double h) {
     const bool track = (expect_converged && lane[0].exact && !forced && (cf == 0 || three) &&
                         (!windowed || outside_rho < kInfinity)) ||
                        opening;
-    if (track)
-      update(std::true_type{});
+    if (opening)
+      update(std::true_type{}, std::true_type{});
+    else if (track)
+      update(std::true_type{}, std::false_type{});
     else
-      update(std::false_type{});
+      update(std::false_type{}, std::false_type{});
     lane[0].merge(lane[1]);
     if (opening) {  // the bound of the rows outside alone; then the whole pass's (below), which may end the step
       out[0].merge(out[1]);
@@ -1201,7 +1210,7 @@ void World::step_midpoint(double h) {
           gap += (2 * roll_[k].radius) * u;
           m.roll_u0[k] = u;
         }
-        count_gap(gap, pa, pb, acc, static_cast<int>(k));
+        count_gap(gap, pa, pb, acc, static_cast<int>(k), std::false_type{});
       }
     };
     lane[0] = lane[1] = PassAcc{};
