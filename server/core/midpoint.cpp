@@ -464,8 +464,9 @@ void World::step_midpoint(double h) {
   // of the same run's mispredictions). But in a step that tries a window from its first guess (a free chain's whip,
   // step after step: the tries back off at rest) most gaps are far below the worst so far and the tolerance, and
   // there a branch that skips them is well predicted and saves their floor and square root (`skip_within`; a gap no
-  // larger than either leaves the worst excess and the marks as they are, its excess being at most the gap; a NaN gap
-  // is always measured): the same values either way (the 10 000-block free chain: 7 % of its time).
+  // larger than the worst so far nor than the tolerance leaves the worst excess and the marks as they are, its excess
+  // being at most the gap; a NaN gap is always measured): the same values either way (the 10 000-block free chain: 7 %
+  // of its time).
   bool skip_within = false;
   const auto count_gap = [tol, &skip_within](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k,
                                              auto marks) HOT_INLINE {
@@ -862,7 +863,7 @@ void World::step_midpoint(double h) {
     } else if (expect_converged) {
       if (split == 0) {
         if (has_rolling_) roll_rows(0, static_cast<int>(n), std::false_type{});
-        PassAcc acc;  // (a local, merged after: the compiler keeps its fields in registers through the rows)
+        PassAcc acc;  // (a local, merged after: not a lane of the array the other passes reach through references)
         for (int k = 0; k < static_cast<int>(n); ++k) residual_row(k, acc, std::false_type{}, FromTop{});
         lane[0].merge(acc);
       } else {
