@@ -453,32 +453,6 @@ void World::step_midpoint(double h) {
     if (next >= 0) lin += m.lam[next];
     m.vbar[i] = m.vfree[i] + m.alpha[i] * lin;
   };
-  // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
-  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. An
-  // excess beyond the tolerance marks row k short (PassAcc::mark_if: a window's bounds), unless `marks` is
-  // std::false_type (the end state's measure, which no window reads). No branch on the gap: at rest the gaps lie about
-  // the tolerance and their rounding floor, and tests that skipped the square root of the gaps within either went
-  // either way at random (callgrind's branch model: 1.6 million mispredictions in 300 steps of a held ladder of 10 000
-  // blocks at rest; docs/benchmarks.md, "The rest regression found"). The excess's positive part is taken by
-  // arithmetic for the same reason: GCC compiled std::max(excess, 0.0) after the square root as a branch (0.6 million
-  // of the same run's mispredictions). But in a step that tries a window from its first guess (a free chain's whip,
-  // step after step: the tries back off at rest) most gaps are far below the worst so far and the tolerance, and
-  // there a branch that skips them is well predicted and saves their floor and square root (`skip_within`; a gap no
-  // larger than the worst so far nor than the tolerance leaves the worst excess and the marks as they are, its excess
-  // being at most the gap; a NaN gap is always measured): the same values either way (the 10 000-block free chain: 7 %
-  // of its time).
-  bool skip_within = false;
-  const auto count_gap = [tol, &skip_within](const Vec2& gap, const Vec2& pa, const Vec2& pb, PassAcc& acc, int k,
-                                             auto marks) HOT_INLINE {
-    const double gap2 = gap.squaredNorm();
-    acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
-    if (skip_within && gap2 <= acc.worst_gap2 && gap2 <= tol * tol) return;
-    const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
-    const double over = std::sqrt(gap2) - floor;
-    const double excess = 0.5 * (over + std::abs(over));  // max(over, 0.0) (but a zero's sign), NaN kept
-    acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
-    if constexpr (decltype(marks)::value) acc.mark_if(!(excess <= tol), k, k);
-  };
   // One body's residual and Newton terms at the current iterate, from its rows: `prev` the row whose body b it is
   // (or -1), `next` the row whose body a it is (or -1). Stores the levers of those rows on its side. `newton`
   // (std::true_type or std::false_type): whether the Newton terms are wanted too, or the residual alone (a pass that
@@ -565,7 +539,7 @@ void World::step_midpoint(double h) {
     const double floor = 8 * kEpsilon * (std::abs(ti * damp) + 0.5 * h * std::abs(state_[i].w) + c * ang_abs);
     const double rho_excess = std::max(std::abs(rho) - floor, 0.0) * bodies_[i].gyration;
     acc.worst_rho = std::isfinite(rho_excess) ? std::max(acc.worst_rho, rho_excess) : kInfinity;
-    const bool short_rho = !(rho_excess <= kRhoShare * tol);  // (a window's bounds: below; no branch, as count_gap)
+    const bool short_rho = !(rho_excess <= kRhoShare * tol);  // (a window's bounds: below; a select, as count_gap's)
     const int hi = std::max(prev, next), lo = std::min(prev, next) >= 0 ? std::min(prev, next) : hi;  // (its rows)
     acc.mark_if(short_rho && hi >= 0, lo, hi);
     if constexpr (!kNewton) acc.fine_rho = std::max(acc.fine_rho, short_rho ? 0.0 : rho_excess);  // (window_from_guess)
@@ -605,7 +579,31 @@ void World::step_midpoint(double h) {
       static_cast<int>(n) >= kWindowMinRows;
   // Whether this step tries a window from its first guess (below), which the first pass then checks.
   const bool try_guess_window = may_window && !rescuing_ && guess_window_wait_ == 0;
-  skip_within = try_guess_window;  // (count_gap)
+  // A hinge gap between the points pa and pb, counted into the largest gap and, less what rounding alone leaves of it
+  // (a few ulps of the positions: 6 km down a chain of 100 000 blocks they are 1e-12 m), into the worst excess. An
+  // excess beyond the tolerance marks row k short (PassAcc::mark_if: a window's bounds), unless `marks` is
+  // std::false_type (the end state's measure, which no window reads). No branch on the gap: at rest the gaps lie about
+  // the tolerance and their rounding floor, and tests that skipped the square root of the gaps within either went
+  // either way at random (callgrind's branch model: 1.6 million mispredictions in 300 steps of a held ladder of 10 000
+  // blocks at rest; docs/benchmarks.md, "The rest regression found"). The excess's positive part is taken by
+  // arithmetic for the same reason: GCC compiled std::max(excess, 0.0) after the square root as a branch (0.6 million
+  // of the same run's mispredictions). But in a step that tries a window from its first guess (a free chain's whip,
+  // step after step: the tries back off at rest) most gaps are far below the worst so far and the tolerance, and
+  // there a branch that skips them is well predicted and saves their floor and square root (`skip_within`; a gap no
+  // larger than the worst so far nor than the tolerance leaves the worst excess and the marks as they are, its excess
+  // being at most the gap; a NaN gap is always measured): the same values either way (the 10 000-block free chain: 7 %
+  // of its time).
+  const auto count_gap = [tol, skip_within = try_guess_window](const Vec2& gap, const Vec2& pa, const Vec2& pb,
+                                                                PassAcc& acc, int k, auto marks) HOT_INLINE {
+    const double gap2 = gap.squaredNorm();
+    acc.largest_gap2 = std::max(acc.largest_gap2, gap2);
+    if (skip_within && gap2 <= acc.worst_gap2 && gap2 <= tol * tol) return;
+    const double floor = 8 * kEpsilon * (pa.cwiseAbs().maxCoeff() + pb.cwiseAbs().maxCoeff());
+    const double over = std::sqrt(gap2) - floor;
+    const double excess = 0.5 * (over + std::abs(over));  // max(over, 0.0) (but a zero's sign), NaN kept
+    acc.worst_gap2 = std::isfinite(excess) ? std::max(acc.worst_gap2, excess * excess) : kInfinity;
+    if constexpr (decltype(marks)::value) acc.mark_if(!(excess <= tol), k, k);
+  };
   bool expect_converged = m.guess_odds.expect_right() || try_guess_window;
   int win_lo = -1, win_hi = -1;
   bool window_used = false;  // at most one window a step
